@@ -1,0 +1,77 @@
+// The `cndt` subcommands. Each registers its options on a CLI11 subcommand and runs from a plain
+// argument struct, so tests can call run_* directly. run_* returns a process exit code.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "cndt/cli/capture.hpp"
+
+namespace cndt::cli {
+
+/// Capture-reading options shared by info, decode and (later) replay.
+struct CaptureArgs {
+  std::string model = "auto";
+  std::string sensor_ip;
+  std::uint16_t data_port = 2368;
+  std::uint16_t position_port = 8308;
+  double cut_angle_deg = 0.0;
+  double min_range_m = 0.4;
+  double max_range_m = 130.0;
+  bool no_vertical_offsets = false;
+  std::size_t max_points = 150'000;
+};
+void add_capture_options(CLI::App& cmd, CaptureArgs& args);
+/// Validates the arguments and turns them into options; errors are usage errors (exit 2).
+core::Result<CaptureOptions> to_capture_options(const CaptureArgs& args);
+
+struct InfoArgs {
+  std::string capture;
+  CaptureArgs capture_args;
+  bool json = false;
+};
+void register_info(CLI::App& app, InfoArgs& args);
+int run_info(const InfoArgs& args);
+std::string format_info_text(const CaptureReport& report);
+std::string format_info_json(const CaptureReport& report);
+
+struct DecodeArgs {
+  std::string capture;
+  std::string out_dir;
+  std::string format = "bin";
+  bool complete_only = false;
+  CaptureArgs capture_args;
+};
+void register_decode(CLI::App& app, DecodeArgs& args);
+int run_decode(const DecodeArgs& args);
+
+struct SimArgs {
+  std::string scene = "street";
+  double duration_s = 10.0;
+  std::string out_dir;
+  std::uint64_t seed = 1;
+  int movers = 4;
+  double drop_rate = 0.0;
+  bool dual = false;
+  int rpm = 600;
+  double noise_m = 0.01;
+  double start_time_s = 1767225600.0;  // 2026-01-01T00:00:00Z
+};
+void register_sim(CLI::App& app, SimArgs& args);
+int run_sim(const SimArgs& args);
+
+struct RecordArgs {
+  std::string out;
+  std::string bind_address = "0.0.0.0";
+  std::uint16_t data_port = 2368;
+  std::uint16_t position_port = 8308;
+  std::string sensor_ip;
+  double duration_s = 0.0;
+  std::uint64_t max_packets = 0;
+};
+void register_record(CLI::App& app, RecordArgs& args);
+int run_record(const RecordArgs& args);
+
+}  // namespace cndt::cli

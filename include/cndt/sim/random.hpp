@@ -1,0 +1,46 @@
+// Counter-based random numbers: the same (seed, stream, index) always gives the same value, so a
+// simulated capture does not depend on evaluation order.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+
+namespace cndt::sim {
+
+inline std::uint64_t mix64(std::uint64_t x) noexcept {
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  return x ^ (x >> 31);
+}
+
+inline std::uint64_t hash(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) noexcept {
+  return mix64(mix64(seed ^ mix64(stream)) ^ index);
+}
+
+/// Uniform in [0, 1).
+inline double uniform(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) noexcept {
+  return static_cast<double>(hash(seed, stream, index) >> 11) * 0x1.0p-53;
+}
+
+/// Standard normal (Box-Muller over two counter values).
+inline double normal(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) noexcept {
+  const double u1 = std::max(uniform(seed, stream, 2 * index), 1e-300);
+  const double u2 = uniform(seed, stream, 2 * index + 1);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+}
+
+/// A sequential generator for building worlds.
+class Rng {
+ public:
+  Rng(std::uint64_t seed, std::uint64_t stream) : seed_(seed), stream_(stream) {}
+  double uniform() noexcept { return sim::uniform(seed_, stream_, n_++); }
+  double uniform(double lo, double hi) noexcept { return lo + (hi - lo) * uniform(); }
+  bool chance(double p) noexcept { return uniform() < p; }
+
+ private:
+  std::uint64_t seed_, stream_, n_ = 0;
+};
+
+}  // namespace cndt::sim

@@ -1,0 +1,77 @@
+// Decodes one validated data packet into points in the sensor frame (REP-103), each with its own
+// firing time, plus the list of firing sequences the scan assembler cuts on.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "cndt/core/bytes.hpp"
+#include "cndt/core/scan.hpp"
+#include "cndt/vlp16/calibration.hpp"
+#include "cndt/vlp16/packet.hpp"
+
+namespace cndt::vlp16 {
+
+struct DecoderOptions {
+  double min_range_m = 0.4;      ///< returns nearer than this are dropped (sensor minimum ~0.5 m)
+  double max_range_m = 130.0;    ///< returns farther than this are dropped
+  bool vertical_offsets = true;  ///< add each laser's vertical offset (manual table 9-1) to z
+};
+
+/// One firing sequence: every laser fired once, in about 37 us.
+struct Firing {
+  std::uint32_t offset_ns = 0;    ///< first firing after the packet timestamp
+  std::uint16_t azimuth = 0;      ///< rotor azimuth at the first firing, 0.01 deg, [0, 36000)
+  std::uint16_t first_point = 0;  ///< index of its first point in DecodedPacket::points
+  std::uint16_t point_count = 0;  ///< returns kept from this firing (zero and out-of-range dropped)
+};
+
+inline constexpr int kMaxFiringsPerPacket = 24;
+inline constexpr int kMaxPointsPerPacket = 384;
+
+/// A decoded packet. Point::time_ns holds the offset from the packet timestamp here; the scan
+/// assembler rebases it onto the scan's stamp.
+struct DecodedPacket {
+  PacketHeader header;
+  int firing_count = 0;
+  int point_count = 0;
+  std::array<Firing, kMaxFiringsPerPacket> firings{};
+  std::array<core::Point, kMaxPointsPerPacket> points{};
+};
+
+class Decoder {
+ public:
+  Decoder(Model model, const DecoderOptions& options);
+
+  [[nodiscard]] Model model() const noexcept { return table_.model; }
+  [[nodiscard]] const LaserTable& table() const noexcept { return table_; }
+
+  /// Decodes a packet that validate_data_packet() accepted with `header`. Never fails.
+  void decode(core::ByteSpan payload, const PacketHeader& header,
+              DecodedPacket& out) const noexcept;
+
+ private:
+  void decode_sequence(core::ByteSpan payload, std::size_t record_off, std::size_t pair_off,
+                       bool dual, double azimuth, double gap_per_sequence,
+                       DecodedPacket& out) const noexcept;
+  template <std::size_t N, bool Dual>
+  void decode_sequence_n(core::ByteSpan payload, std::size_t record_off, std::size_t pair_off,
+                         double azimuth, double gap_per_sequence,
+                         DecodedPacket& out) const noexcept;
+
+  const LaserTable& table_;
+  DecoderOptions options_;
+  float min_count_, max_count_;  // range limits in distance counts
+  float range_unit_;
+  std::uint32_t sequence_ns_;
+  // Per-laser constants, one array each so the per-sequence loops vectorise.
+  std::array<float, 32> cos_el_{}, sin_el_{}, z_offset_{};
+  std::array<float, 32> cos_az_off_{}, sin_az_off_{};
+  std::array<float, 32> time_fraction_{};  // laser firing time / sequence time
+  std::array<std::uint32_t, 32> time_ns_{};
+  std::array<std::uint16_t, 32> ring_{};
+  std::vector<float> cos_table_, sin_table_;  // by azimuth in 0.01 deg
+};
+
+}  // namespace cndt::vlp16

@@ -1,0 +1,105 @@
+// The cndt binary on bad input: one clear error line naming the file, and the documented exit
+// code; never a crash or a silent empty result.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "temp_dir.hpp"
+
+namespace {
+
+struct CliRun {
+  int code = -1;
+  std::string output;
+};
+
+CliRun run(const std::string& args) {
+  const std::string cmd = std::string(CNDT_BINARY) + " " + args + " 2>&1";
+  CliRun r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buf{};
+  while (std::fgets(buf.data(), static_cast<int>(buf.size()), pipe) != nullptr)
+    r.output += buf.data();
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+int error_lines(const std::string& out) {
+  std::istringstream in(out);
+  int n = 0;
+  for (std::string line; std::getline(in, line);) n += line.rfind("cndt: error", 0) == 0 ? 1 : 0;
+  return n;
+}
+
+TEST(CliBadInput, MissingFile) {
+  const CliRun r = run("info /nonexistent/capture.pcap");
+  EXPECT_EQ(r.code, 66) << r.output;
+  EXPECT_EQ(error_lines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent/capture.pcap"), std::string::npos);
+}
+
+TEST(CliBadInput, DirectoryEmptyAndTextFiles) {
+  cndt::test::TempDir dir;
+  CliRun r = run("info " + dir.path().string());
+  EXPECT_EQ(r.code, 66) << r.output;
+  EXPECT_EQ(error_lines(r.output), 1) << r.output;
+  std::ofstream(dir.file("empty.pcap")).close();
+  r = run("decode " + dir.file("empty.pcap") + " --out " + dir.file("out"));
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("empty.pcap"), std::string::npos);
+  std::ofstream(dir.file("readme.txt")) << "hello\n";
+  r = run("info " + dir.file("readme.txt"));
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_EQ(error_lines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("readme.txt"), std::string::npos);
+}
+
+TEST(CliBadInput, CaptureWithoutSensorDataIsNotASilentSuccess) {
+  cndt::test::TempDir dir;
+  // A capture of one second with every data packet lost leaves only position packets.
+  CliRun r = run("sim --scene corridor --duration 0.3 --drop-rate 0.9 --out " + dir.file("s"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("decode " + dir.file("s/capture.pcap") + " --out " + dir.file("d") + " --data-port 2999");
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("no scan"), std::string::npos) << r.output;
+  r = run("info " + dir.file("s/capture.pcap") + " --data-port 2999");
+  EXPECT_EQ(r.code, 65) << r.output;
+}
+
+TEST(CliUsage, BadOptionsAreUsageErrors) {
+  EXPECT_EQ(run("").code, 2);
+  EXPECT_EQ(run("info").code, 2);
+  EXPECT_EQ(run("sim --out /tmp/x --rpm 500").code, 2);
+  EXPECT_EQ(run("info x.pcap --model hdl64").code, 2);
+  const CliRun help = run("info --help");
+  EXPECT_EQ(help.code, 0);
+  EXPECT_NE(help.output.find("--model"), std::string::npos);
+}
+
+TEST(CliRoundTrip, SimInfoDecode) {
+  cndt::test::TempDir dir;
+  CliRun r = run("sim --scene street --duration 1 --out " + dir.file("s"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("info --json " + dir.file("s/capture.pcap"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"model\": \"VLP-16\""), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"scans\": 11"), std::string::npos) << r.output;
+  r = run("decode " + dir.file("s/capture.pcap") + " --out " + dir.file("d") + " --format ply");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream times(dir.file("d/times.txt"));
+  int lines = 0;
+  for (std::string l; std::getline(times, l);) lines += l[0] == '#' ? 0 : 1;
+  EXPECT_EQ(lines, 11);
+  std::ifstream ply(dir.file("d/000003.ply"));
+  std::string magic;
+  ply >> magic;
+  EXPECT_EQ(magic, "ply");
+}
+
+}  // namespace

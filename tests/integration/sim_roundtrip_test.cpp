@@ -1,0 +1,207 @@
+// The simulator's capture decodes back to the simulator's own points and scan times.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <iterator>
+#include <sstream>
+
+#include "cndt/cli/capture.hpp"
+#include "cndt/sim/lidar_sim.hpp"
+#include "cndt/vlp16/decoder.hpp"
+#include "temp_dir.hpp"
+
+namespace cndt::sim {
+namespace {
+
+// Tolerance of one decoded point: half a 2 mm range step, plus the azimuth error that 0.01 deg
+// block azimuths allow after interpolation (under 0.015 deg), plus float rounding.
+double tolerance(double range) { return 1.0e-3 + range * 0.015 * 3.14159265 / 180.0 + 1e-5; }
+
+struct PointCheck {
+  std::size_t compared = 0;
+  double worst_ratio = 0.0;  // largest error / tolerance
+};
+
+PointCheck compare_points(const Scene& scene, const LidarSimOptions& o, std::size_t packets) {
+  LidarSimulator sim(scene, o);
+  vlp16::DecoderOptions dopt;
+  dopt.min_range_m = 0.0;
+  dopt.max_range_m = 200.0;
+  const vlp16::Decoder dec(vlp16::Model::kVlp16, dopt);
+  PointCheck check;
+  SimPacket pkt;
+  std::vector<TruePoint> truth;
+  vlp16::DecodedPacket dp;
+  for (std::size_t k = 0; k < packets && sim.next(pkt, &truth); ++k) {
+    vlp16::PacketHeader h;
+    EXPECT_EQ(vlp16::validate_data_packet(core::ByteSpan(pkt.payload), h),
+              vlp16::PacketError::kNone);
+    dec.decode(core::ByteSpan(pkt.payload), h, dp);
+    EXPECT_EQ(static_cast<std::size_t>(dp.point_count), truth.size()) << "packet " << k;
+    const std::size_t n = std::min(truth.size(), static_cast<std::size_t>(dp.point_count));
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& p = dp.points[i];
+      const auto& t = truth[i];
+      EXPECT_EQ(p.return_type, t.type);
+      const double err = (Eigen::Vector3d(p.x, p.y, p.z) - t.sensor_point).norm();
+      check.worst_ratio = std::max(check.worst_ratio, err / tolerance(t.range));
+      // The decoded time is the firing time the simulator used.
+      EXPECT_EQ(p.time_ns, static_cast<std::uint32_t>(t.sequence * 55296 + t.laser * 2304));
+    }
+    check.compared += n;
+    truth.clear();
+  }
+  return check;
+}
+
+TEST(SimRoundTrip, SingleReturnPointsComeBackWithinQuantisation) {
+  const Scene scene = build_scene(SceneKind::kStreet, 3.0, 4, 7);
+  LidarSimOptions o;
+  o.duration_s = 3.0;
+  o.seed = 7;
+  const PointCheck c = compare_points(scene, o, 800);
+  EXPECT_GT(c.compared, 200'000u);
+  EXPECT_LE(c.worst_ratio, 1.0);
+  std::printf("single return: %zu points, worst error %.2f of tolerance\n", c.compared,
+              c.worst_ratio);
+}
+
+TEST(SimRoundTrip, DualReturnPointsComeBackWithinQuantisation) {
+  const Scene scene = build_scene(SceneKind::kCampus, 2.0, 4, 3);  // foliage gives two echoes
+  LidarSimOptions o;
+  o.duration_s = 2.0;
+  o.seed = 3;
+  o.dual = true;
+  const PointCheck c = compare_points(scene, o, 1500);
+  EXPECT_GT(c.compared, 200'000u);
+  EXPECT_LE(c.worst_ratio, 1.0);
+}
+
+struct Decoded {
+  cli::CaptureReport report;
+  std::vector<std::int64_t> gt_times;
+};
+
+Decoded simulate_and_decode(const test::TempDir& dir, SceneKind kind, const LidarSimOptions& o) {
+  const Scene scene = build_scene(kind, o.duration_s, 4, o.seed);
+  auto sum = write_simulation(scene, o, dir.path().string());
+  EXPECT_TRUE(sum) << (sum ? "" : sum.error().message);
+  Decoded d;
+  std::ifstream gt(dir.file("groundtruth.tum"));
+  for (std::string line; std::getline(gt, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ls(line);
+    std::string t;
+    ls >> t;
+    const auto dot = t.find('.');
+    d.gt_times.push_back(std::stoll(t.substr(0, dot)) * 1'000'000'000 +
+                         std::stoll(t.substr(dot + 1)));
+  }
+  auto r = cli::read_capture(dir.file("capture.pcap"), {});
+  EXPECT_TRUE(r);
+  d.report = r.value();
+  return d;
+}
+
+// Index of the ground-truth start within one firing sequence of `t`, or -1.
+int match(const std::vector<std::int64_t>& gt, std::int64_t t) {
+  for (std::size_t i = 0; i < gt.size(); ++i) {
+    if (std::llabs(gt[i] - t) <= 55'296) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+TEST(SimRoundTrip, ScanTimesMatchTheGroundTruth) {
+  test::TempDir dir;
+  LidarSimOptions o;
+  o.duration_s = 3.0;
+  const Decoded d = simulate_and_decode(dir, SceneKind::kStreet, o);
+  ASSERT_EQ(d.report.scans.size(), d.gt_times.size());
+  // The packet clock counts whole microseconds, so stamps agree to within one.
+  for (std::size_t i = 0; i < d.gt_times.size(); ++i) {
+    EXPECT_NEAR(static_cast<double>(d.report.scans[i].stamp.count() - d.gt_times[i]), 0.0, 1000.0)
+        << "scan " << i;
+  }
+  EXPECT_EQ(d.report.assembler.lost_packets, 0u);
+  EXPECT_EQ(d.report.driver.position_packets, d.report.pcap.position);
+  EXPECT_EQ(d.report.driver.rejected_total(), 0u);
+}
+
+TEST(SimRoundTrip, PacketLossIsCountedAndScanTimesHold) {
+  test::TempDir dir;
+  LidarSimOptions o;
+  o.duration_s = 5.0;
+  o.drop_rate = 0.05;
+  o.seed = 11;
+  const Decoded d = simulate_and_decode(dir, SceneKind::kLoop, o);
+  const auto expected_packets = static_cast<std::uint64_t>(std::ceil(5.0 / 1327.104e-6));
+  const std::uint64_t received = d.report.driver.data_packets;
+  const std::uint64_t dropped = expected_packets - received;
+  EXPECT_NEAR(static_cast<double>(dropped) / static_cast<double>(expected_packets), 0.05, 0.015);
+  // Every gap inside the stream is found; only losses before the first packet are invisible.
+  EXPECT_LE(d.report.assembler.lost_packets, dropped);
+  EXPECT_GE(d.report.assembler.lost_packets + 3, dropped);
+  int matched = 0;
+  for (const auto& s : d.report.scans) {
+    if (match(d.gt_times, s.stamp.count()) >= 0) {
+      ++matched;
+    } else {
+      // A scan can only start late when the packet at its cut was lost.
+      EXPECT_NE(s.flags & core::kScanPacketLoss, 0u);
+    }
+  }
+  EXPECT_GE(matched, static_cast<int>(d.gt_times.size()) * 8 / 10);
+}
+
+TEST(SimRoundTrip, DualReturnCaptureAcrossTheHour) {
+  test::TempDir dir;
+  LidarSimOptions o;
+  o.duration_s = 2.0;
+  o.dual = true;
+  o.start_time_ns = 1'767'229'199'500'000'000;  // 00:59:59.5, so the sensor clock wraps
+  const Decoded d = simulate_and_decode(dir, SceneKind::kStreet, o);
+  EXPECT_EQ(d.report.driver.hour_rollovers, 1u);
+  EXPECT_EQ(d.report.assembler.time_jumps, 0u);
+  EXPECT_EQ(*d.report.driver.return_mode, vlp16::ReturnMode::kDual);
+  ASSERT_EQ(d.report.scans.size(), d.gt_times.size());
+  for (std::size_t i = 0; i < d.gt_times.size(); ++i) {
+    EXPECT_NEAR(static_cast<double>(d.report.scans[i].stamp.count() - d.gt_times[i]), 0.0, 1000.0)
+        << "scan " << i;
+  }
+}
+
+TEST(SimRoundTrip, RotationSpeedIsHonoured) {
+  test::TempDir dir;
+  LidarSimOptions o;
+  o.duration_s = 2.0;
+  o.rpm = 1200;
+  const Decoded d = simulate_and_decode(dir, SceneKind::kCorridor, o);
+  EXPECT_NEAR(d.report.driver.rpm(), 1200.0, 1.0);
+  EXPECT_NEAR(static_cast<double>(d.report.scans.size()), 41.0, 1.0);
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+TEST(SimRoundTrip, DeterministicPerSeed) {
+  test::TempDir a, b, c;
+  LidarSimOptions o;
+  o.duration_s = 1.0;
+  o.drop_rate = 0.02;
+  const Scene s1 = build_scene(SceneKind::kCampus, 1.0, 4, 5);
+  const Scene s2 = build_scene(SceneKind::kCampus, 1.0, 4, 5);
+  o.seed = 5;
+  ASSERT_TRUE(write_simulation(s1, o, a.path().string()));
+  ASSERT_TRUE(write_simulation(s2, o, b.path().string()));
+  EXPECT_EQ(slurp(a.file("capture.pcap")), slurp(b.file("capture.pcap")));
+  EXPECT_EQ(slurp(a.file("groundtruth.tum")), slurp(b.file("groundtruth.tum")));
+  o.seed = 6;
+  const Scene s3 = build_scene(SceneKind::kCampus, 1.0, 4, 6);
+  ASSERT_TRUE(write_simulation(s3, o, c.path().string()));
+  EXPECT_NE(slurp(a.file("capture.pcap")), slurp(c.file("capture.pcap")));
+}
+
+}  // namespace
+}  // namespace cndt::sim
