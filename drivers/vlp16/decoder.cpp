@@ -47,7 +47,11 @@ Decoder::Decoder(Model model, const DecoderOptions& options)
     time_fraction_[i] = static_cast<float>(t_us / table_.sequence_period_us);
     time_ns_[i] = static_cast<std::uint32_t>(std::lround(t_us * 1000.0));
     ring_[i] = table_.ring[i];
+    tail_[i] = time_ns_[i] | (static_cast<std::uint64_t>(ring_[i]) << 32);
   }
+  min_count_u_ = static_cast<std::uint32_t>(std::ceil(min_count_));
+  count_span_u_ = static_cast<std::uint32_t>(std::floor(std::min(max_count_, 65535.0F))) -
+                  min_count_u_;
 }
 
 void Decoder::decode(core::ByteSpan payload, const PacketHeader& header,
@@ -150,14 +154,13 @@ void Decoder::decode_sequence_n(core::ByteSpan payload, std::size_t record_off,
     sa[k] = s * cos_az_off_[k] + c * sin_az_off_[k];
   }
   struct Block {
-    std::array<float, N> x, y, z, count;
+    std::array<float, N> x, y, z;
+    std::array<std::uint32_t, N> count;
   };
   auto geometry = [&](std::size_t off, Block& g) {
+    for (std::size_t k = 0; k < n; ++k) g.count[k] = core::load_le16(payload, off + 3 * k);
     for (std::size_t k = 0; k < n; ++k) {
-      g.count[k] = static_cast<float>(core::load_le16(payload, off + 3 * k));
-    }
-    for (std::size_t k = 0; k < n; ++k) {
-      const float r = g.count[k] * range_unit_;
+      const float r = static_cast<float>(g.count[k]) * range_unit_;
       const float xy = r * cos_el_[k];
       g.x[k] = xy * ca[k];
       g.y[k] = -xy * sa[k];  // the sensor's azimuth runs clockwise seen from above
@@ -167,16 +170,16 @@ void Decoder::decode_sequence_n(core::ByteSpan payload, std::size_t record_off,
   // 2. Returns, written without branches: each candidate goes to the next free slot, which is
   // kept only when the return is valid.
   int np = out.point_count;  // in a register: the point stores could alias the member
+  const std::uint64_t offset = f.offset_ns;
   auto put = [&](const Block& g, std::size_t k, std::uint8_t refl, core::ReturnType type,
                  bool keep) {
-    const float c = g.count[k];
-    const bool valid = keep && c >= min_count_ && c <= max_count_;
+    // In range when min <= count <= max: one unsigned comparison.
+    const bool valid = keep && (g.count[k] - min_count_u_) <= count_span_u_;
     // Two wide stores per point instead of eight narrow ones: x y z intensity, then
     // time ring type reserved (the layout static_asserted in scan.hpp).
     const float head[4] = {g.x[k], g.y[k], g.z[k], static_cast<float>(refl)};
-    const std::uint64_t tail = static_cast<std::uint64_t>(f.offset_ns + time_ns_[k]) |
-                               (static_cast<std::uint64_t>(ring_[k]) << 32) |
-                               (static_cast<std::uint64_t>(type) << 48);
+    const std::uint64_t tail =
+        tail_[k] + offset + (static_cast<std::uint64_t>(static_cast<std::uint8_t>(type)) << 48);
     auto* dst = reinterpret_cast<unsigned char*>(&out.points[static_cast<std::size_t>(np)]);
     std::memcpy(dst, head, sizeof head);
     std::memcpy(dst + offsetof(core::Point, time_ns), &tail, sizeof tail);

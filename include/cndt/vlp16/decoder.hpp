@@ -71,6 +71,8 @@ class Decoder {
   std::array<float, 32> time_fraction_{};  // laser firing time / sequence time
   std::array<std::uint32_t, 32> time_ns_{};
   std::array<std::uint16_t, 32> ring_{};
+  std::array<std::uint64_t, 32> tail_{};  // time_ns | ring << 32: a point's last 8 bytes
+  std::uint32_t min_count_u_ = 1, count_span_u_ = 0;  // valid counts: [min, min + span]
   std::vector<float> cos_table_, sin_table_;  // by azimuth in 0.01 deg
 };
 
