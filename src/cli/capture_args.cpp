@@ -1,10 +1,23 @@
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <cmath>
 
 #include "cndt/cli/commands.hpp"
 
 namespace cndt::cli {
+
+int fail(const core::Error& error) {
+  spdlog::error("{}", error.message);
+  return error.code;
+}
+
+void warn_if_cut_short(const CaptureReport& r) {
+  if (r.pcap.truncated) {
+    spdlog::warn("'{}' ends in the middle of record {} ({}); everything before it was read", r.path,
+                 r.pcap.truncated->index, r.pcap.truncated->message);
+  }
+}
 
 void add_capture_options(CLI::App& cmd, CaptureArgs& a) {
   cmd.add_option("--model", a.model,

@@ -72,10 +72,7 @@ void register_decode(CLI::App& app, DecodeArgs& args) {
 
 int run_decode(const DecodeArgs& args) {
   auto options = to_capture_options(args.capture_args);
-  if (!options) {
-    spdlog::error("{}", options.error().message);
-    return options.error().code;
-  }
+  if (!options) return fail(options.error());
   DecodeContext ctx;
   ctx.dir = args.out_dir;
   ctx.format = parse_cloud_format(args.format).value_or(CloudFormat::kBin);
@@ -93,15 +90,9 @@ int run_decode(const DecodeArgs& args) {
   }
   ctx.times << "# file stamp_s end_s points packets lost_packets flags\n";
   auto report = read_capture(args.capture, options.value(), write_scan, &ctx);
-  if (!report) {
-    spdlog::error("{}", report.error().message);
-    return report.error().code;
-  }
+  if (!report) return fail(report.error());
   ctx.times.close();
-  if (ctx.error) {
-    spdlog::error("{}", ctx.error->message);
-    return ctx.error->code;
-  }
+  if (ctx.error) return fail(*ctx.error);
   if (!ctx.times) {
     spdlog::error("writing '{}' failed", (ctx.dir / "times.txt").string());
     return core::kExitIoError;

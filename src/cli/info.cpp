@@ -201,20 +201,11 @@ void register_info(CLI::App& app, InfoArgs& args) {
 
 int run_info(const InfoArgs& args) {
   auto options = to_capture_options(args.capture_args);
-  if (!options) {
-    spdlog::error("{}", options.error().message);
-    return options.error().code;
-  }
+  if (!options) return fail(options.error());
   auto report = read_capture(args.capture, options.value());
-  if (!report) {
-    spdlog::error("{}", report.error().message);
-    return report.error().code;
-  }
+  if (!report) return fail(report.error());
   const CaptureReport& r = report.value();
-  if (r.pcap.truncated) {
-    spdlog::warn("'{}' ends in the middle of record {}: {}", r.path, r.pcap.truncated->index,
-                 r.pcap.truncated->message);
-  }
+  warn_if_cut_short(r);
   std::cout << (args.json ? format_info_json(r) : format_info_text(r));
   if (r.driver.data_packets == 0) {
     spdlog::error("'{}' holds no Velodyne data packets (UDP port {})", r.path,

@@ -46,15 +46,9 @@ int run_record(const RecordArgs& a) {
     }
   }
   auto writer = pcap::PcapWriter::create(a.out, true);
-  if (!writer) {
-    spdlog::error("{}", writer.error().message);
-    return writer.error().code;
-  }
+  if (!writer) return fail(writer.error());
   auto source = net::UdpSource::open(o);
-  if (!source) {
-    spdlog::error("{}", source.error().message);
-    return source.error().code;
-  }
+  if (!source) return fail(source.error());
   g_stop.store(false);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

@@ -68,10 +68,7 @@ int run_sim(const SimArgs& a) {
   o.seed = a.seed;
   o.start_time_ns = static_cast<std::int64_t>(std::llround(a.start_time_s * 1e9));
   auto result = sim::write_simulation(scene, o, a.out_dir);
-  if (!result) {
-    spdlog::error("{}", result.error().message);
-    return result.error().code;
-  }
+  if (!result) return fail(result.error());
   const auto& s = result.value();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   spdlog::info(

@@ -11,6 +11,11 @@
 
 namespace cndt::cli {
 
+/// Logs a setup error as one line and returns its exit code.
+int fail(const core::Error& error);
+/// Logs one warning when the capture ended in the middle of a record.
+void warn_if_cut_short(const CaptureReport& report);
+
 /// Capture-reading options shared by info, decode and (later) replay.
 struct CaptureArgs {
   std::string model = "auto";
