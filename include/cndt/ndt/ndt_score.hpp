@@ -1,0 +1,59 @@
+// NDT scan-matching objective (paper section 2.2, eqs 5-6) with its analytic gradient and
+// Hessian (Magnusson's derivation with d1 = d2 = 1):
+//   q = R(x) p + T(x) - mu_j,  s = -exp(-q^T Sigma_j^-1 q / 2),  S(x) = sum over points of s.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "cndt/core/pose.hpp"
+#include "cndt/ndt/voxel_grid.hpp"
+
+namespace cndt::ndt {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+/// R(x), its first and second derivatives by the three angles, for one pose.
+class PoseDerivatives {
+ public:
+  explicit PoseDerivatives(const core::Pose6& x);
+  [[nodiscard]] Eigen::Vector3d transform(const Eigen::Vector3d& p) const { return R_ * p + t_; }
+  /// dv/dx (3 x 6): identity for the translation, dR/d(angle) p for the rotation.
+  void jacobian(const Eigen::Vector3d& p, Eigen::Matrix<double, 3, 6>& J) const;
+  /// d2v/d(angle_a) d(angle_b) p for (a, b) = (0,0) (0,1) (0,2) (1,1) (1,2) (2,2).
+  void second(const Eigen::Vector3d& p, std::array<Eigen::Vector3d, 6>& d2) const;
+  [[nodiscard]] const Eigen::Matrix3d& rotation() const { return R_; }
+
+ private:
+  Eigen::Matrix3d R_;
+  Eigen::Vector3d t_;
+  std::array<Eigen::Matrix3d, 3> d1_;
+  std::array<Eigen::Matrix3d, 6> d2_;
+};
+
+struct ScoreResult {
+  double score = 0.0;
+  Vector6d gradient = Vector6d::Zero();
+  Matrix6d hessian = Matrix6d::Zero();
+  std::size_t matched = 0;  ///< points that fell in an enabled voxel with a Gaussian
+};
+
+/// Which reference voxels take part: nullptr = all with a Gaussian; otherwise mask[i] != 0
+/// enables voxel i of grid.voxels().
+using VoxelMask = const std::vector<std::uint8_t>*;
+
+/// Which voxels a point is scored against: the one it falls in (the paper's single grid), or
+/// that one and its six face neighbours, which widens the basin of convergence.
+enum class Neighbours { kOne = 1, kSeven = 7 };
+
+/// S(x) for `points` (sensor frame) against `grid`; with `derivatives`, also its gradient and
+/// Hessian. Each point adds one term per Gaussian of the voxels `neighbours` selects.
+ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
+                      const core::Pose6& x, bool derivatives, VoxelMask mask = nullptr,
+                      Neighbours neighbours = Neighbours::kOne);
+
+}  // namespace cndt::ndt

@@ -1,0 +1,35 @@
+// Newton's method with a backtracking line search for the NDT objective (paper section 2.2).
+#pragma once
+
+#include <span>
+
+#include "cndt/ndt/ndt_score.hpp"
+
+namespace cndt::ndt {
+
+struct NewtonOptions {
+  int max_iterations = 30;
+  double translation_eps = 1e-3;      ///< m: converged when the step moves less than this ...
+  double rotation_eps = 2e-4;         ///< rad: ... and turns less than this
+  double score_eps = 1e-7;            ///< or when S changes by less than this fraction
+  double max_translation_step = 0.5;  ///< m, a single step is scaled down to this
+  double max_rotation_step = 0.1;     ///< rad
+  Neighbours neighbours = Neighbours::kSeven;  ///< voxels each point is scored against
+};
+
+struct NewtonResult {
+  core::Pose6 pose = core::Pose6::Zero();
+  int iterations = 0;
+  bool converged = false;
+  double score = 0.0;
+  std::size_t matched = 0;
+  Matrix6d hessian = Matrix6d::Zero();  ///< at the final pose
+};
+
+/// Minimises S(x) from `initial`. Never throws; a pose where no point matches returns
+/// converged = false with the initial pose.
+NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
+                          const core::Pose6& initial, const NewtonOptions& options,
+                          VoxelMask mask = nullptr);
+
+}  // namespace cndt::ndt

@@ -1,0 +1,273 @@
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <random>
+
+#include "cndt/ndt/consensus.hpp"
+#include "cndt/ndt/ndt_score.hpp"
+#include "cndt/ndt/newton.hpp"
+#include "cndt/ndt/voxel_grid.hpp"
+
+namespace cndt::ndt {
+namespace {
+
+using core::Pose6;
+
+TEST(VoxelGrid, RunningSumsGiveMeanAndCovariance) {
+  VoxelGrid g({1.0, 100, 5, 0.001});
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0.0, 1.0);
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < 400; ++i) {
+    pts.emplace_back(0.5 + 0.1 * n(rng), 0.5 + 0.05 * n(rng), 0.5 + 0.02 * n(rng));
+    pts.back() = pts.back().cwiseMax(0.01).cwiseMin(0.99);
+    ASSERT_TRUE(g.add(pts.back()));
+  }
+  g.finalize();
+  ASSERT_EQ(g.size(), 1u);
+  const Voxel& v = g.voxels()[0];
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) mean += p;
+  mean /= 400.0;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose();
+  cov /= 400.0;  // population covariance, as documented
+  EXPECT_LT((v.mean - mean).norm(), 1e-12);
+  EXPECT_LT((v.inv_cov - cov.inverse()).norm() / cov.inverse().norm(), 1e-9);
+}
+
+TEST(VoxelGrid, RaisesSmallEigenvaluesAndNeedsFivePoints) {
+  VoxelGrid g({1.0, 100, 5, 0.001});
+  // A perfect plane: the normal eigenvalue is 0 and must be raised to 0.001 x the largest.
+  for (int i = 0; i < 10; ++i) {
+    for (int j = 0; j < 10; ++j) g.add(Eigen::Vector3d(0.05 + 0.09 * i, 0.05 + 0.09 * j, 0.5));
+  }
+  for (int i = 0; i < 4; ++i) g.add(Eigen::Vector3d(1.5, 0.5, 0.5));  // 4 points: no Gaussian
+  g.finalize();
+  ASSERT_EQ(g.size(), 2u);
+  const Voxel& plane = *g.find(Eigen::Vector3d(0.5, 0.5, 0.5));
+  ASSERT_TRUE(plane.has_gaussian);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(plane.inv_cov.inverse());
+  EXPECT_NEAR(es.eigenvalues()(0) / es.eigenvalues()(2), 0.001, 1e-9);
+  EXPECT_FALSE(g.find(Eigen::Vector3d(1.5, 0.5, 0.5))->has_gaussian);
+}
+
+TEST(VoxelGrid, NeverGrowsPastItsCapacity) {
+  VoxelGrid g({1.0, 3, 5, 0.001});
+  for (int i = 0; i < 10; ++i) g.add(Eigen::Vector3d(i + 0.5, 0.5, 0.5));
+  EXPECT_EQ(g.size(), 3u);
+  EXPECT_EQ(g.refused_points(), 7u);
+}
+
+// Clusters at the centres of 4 m voxels, so that small pose changes never move a point into
+// another voxel and S is smooth where the finite differences are taken.
+struct Scene {
+  VoxelGrid grid{{4.0, 1000, 5, 0.001}};
+  std::vector<Eigen::Vector3d> test;
+};
+
+Scene random_scene(std::uint32_t seed) {
+  Scene s;
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> cell(-3, 3);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (int c = 0; c < 25; ++c) {
+    const Eigen::Vector3d centre(4.0 * cell(rng) + 2.0, 4.0 * cell(rng) + 2.0, 4.0 * (c % 2) + 2.0);
+    const Eigen::Vector3d sd(0.1 + 0.4 * std::abs(n(rng)), 0.1 + 0.4 * std::abs(n(rng)),
+                             0.05 + 0.2 * std::abs(n(rng)));
+    for (int i = 0; i < 40; ++i) {
+      Eigen::Vector3d p = centre + sd.cwiseProduct(Eigen::Vector3d(n(rng), n(rng), n(rng)));
+      p = p.cwiseMax(centre - Eigen::Vector3d::Constant(1.9))
+              .cwiseMin(centre + Eigen::Vector3d::Constant(1.9));
+      s.grid.add(p);
+    }
+    for (int i = 0; i < 15; ++i) {
+      const Eigen::Vector3d d(n(rng), n(rng), n(rng));
+      s.test.push_back(centre + 0.3 * d.cwiseMin(Eigen::Vector3d::Constant(2.0))
+                                          .cwiseMax(Eigen::Vector3d::Constant(-2.0)));
+    }
+  }
+  s.grid.finalize();
+  return s;
+}
+
+class Derivatives : public ::testing::TestWithParam<std::uint32_t> {};
+
+TEST_P(Derivatives, AnalyticGradientAndHessianEqualFiniteDifferences) {
+  const std::uint32_t seed = GetParam();
+  const Scene s = random_scene(seed);
+  std::mt19937 rng(seed + 1000);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Pose6 x;
+  x << 0.1 * u(rng), 0.1 * u(rng), 0.1 * u(rng), 0.03 * u(rng), 0.03 * u(rng), 0.03 * u(rng);
+  // Test points are given in the sensor frame: undo the pose so they land near the clusters.
+  std::vector<Eigen::Vector3d> pts;
+  const Eigen::Isometry3d T = core::to_isometry(x);
+  for (const auto& p : s.test) pts.push_back(T.inverse() * p);
+  // Even seeds score against seven voxels per point, odd seeds against one.
+  const Neighbours nb = seed % 2 == 0 ? Neighbours::kSeven : Neighbours::kOne;
+  const ScoreResult r = ndt_score(s.grid, pts, x, true, nullptr, nb);
+  ASSERT_GT(r.matched, 300u);
+  const double h = 1e-6;
+  Vector6d g_fd;
+  Matrix6d h_fd;
+  for (int k = 0; k < 6; ++k) {
+    Pose6 a = x, b = x;
+    a[k] += h;
+    b[k] -= h;
+    const ScoreResult ra = ndt_score(s.grid, pts, a, true, nullptr,
+                                     GetParam() % 2 == 0 ? Neighbours::kSeven : Neighbours::kOne);
+    const ScoreResult rb = ndt_score(s.grid, pts, b, true, nullptr,
+                                     GetParam() % 2 == 0 ? Neighbours::kSeven : Neighbours::kOne);
+    ASSERT_EQ(ra.matched, r.matched);
+    ASSERT_EQ(rb.matched, r.matched);
+    g_fd[k] = (ra.score - rb.score) / (2 * h);
+    h_fd.col(k) = (ra.gradient - rb.gradient) / (2 * h);
+  }
+  const double g_err = (r.gradient - g_fd).norm() / g_fd.norm();
+  const double h_err = (r.hessian - h_fd).norm() / h_fd.norm();
+  std::printf("seed %u: gradient relative error %.2e, Hessian relative error %.2e\n", seed, g_err,
+              h_err);
+  EXPECT_LT(g_err, 1e-4);
+  EXPECT_LT(h_err, 1e-4);
+}
+
+INSTANTIATE_TEST_SUITE_P(RandomPoses, Derivatives, ::testing::Range(1u, 11u));
+
+TEST(Newton, RecoversAKnownMotionOfAStructuredScene) {
+  // Ground, two walls and a box, sampled densely; the test scan sees it from a moved sensor.
+  std::vector<Eigen::Vector3d> world;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n(0.0, 0.01);
+  for (double a = -10; a <= 10; a += 0.1) {
+    for (double b = -10; b <= 10; b += 0.1) world.emplace_back(a, b, -1.8 + n(rng));
+    for (double z = -1.8; z <= 2; z += 0.1) {
+      world.emplace_back(a, 6.0 + n(rng), z);
+      world.emplace_back(8.0 + n(rng), a, z);
+    }
+  }
+  for (double a = 0; a <= 2; a += 0.05) {
+    for (double z = -1.8; z <= 0; z += 0.05) {
+      world.emplace_back(3 + a, -4.0 + n(rng), z);
+      world.emplace_back(3 + n(rng), -4.0 - a, z);
+    }
+  }
+  VoxelGrid grid({0.5, 200'000, 5, 0.001});
+  for (const auto& p : world) grid.add(p);
+  grid.finalize();
+  Pose6 truth;
+  truth << 0.3, -0.2, 0.05, 0.01, -0.015, 0.035;
+  const Eigen::Isometry3d T = core::to_isometry(truth);
+  std::vector<Eigen::Vector3d> scan;
+  for (std::size_t i = 0; i < world.size(); i += 3) scan.push_back(T.inverse() * world[i]);
+  NewtonOptions seven;
+  const NewtonResult r = newton_solve(grid, scan, Pose6::Zero(), seven);
+  NewtonOptions one;
+  one.neighbours = Neighbours::kOne;
+  const NewtonResult r1 = newton_solve(grid, scan, Pose6::Zero(), one);
+  std::printf(
+      "7 voxels: %d iterations, error %.4f m %.5f rad; 1 voxel: %d iterations, error "
+      "%.4f m %.5f rad\n",
+      r.iterations, (r.pose.head<3>() - truth.head<3>()).norm(),
+      (r.pose.tail<3>() - truth.tail<3>()).norm(), r1.iterations,
+      (r1.pose.head<3>() - truth.head<3>()).norm(), (r1.pose.tail<3>() - truth.tail<3>()).norm());
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT((r.pose.head<3>() - truth.head<3>()).norm(), 0.01);
+  EXPECT_LT((r.pose.tail<3>() - truth.tail<3>()).norm(), 0.001);
+  EXPECT_LE(r.iterations, 30);
+}
+
+TEST(ChiSquare, QuantilesMatchReferenceValues) {
+  EXPECT_NEAR(chi2inv(0.999, 1), 10.828, 5e-4);
+  EXPECT_NEAR(chi2inv(0.001, 10), 1.479, 5e-4);
+  EXPECT_NEAR(chi2inv(0.999, 10), 29.588, 5e-4);
+  EXPECT_NEAR(chi2inv(0.001, 1), 1.5708e-6, 1e-9);
+  const ChiSquareTable t(200);
+  EXPECT_DOUBLE_EQ(t.high(1), chi2inv(0.999, 1));
+  EXPECT_DOUBLE_EQ(t.low(10), chi2inv(0.001, 10));
+}
+
+// Paper Figure 4: a reference voxel holding a plane patch, and test points that match it,
+// are partly hidden by an occluder, come from another feature, or carry outliers.
+struct Fig4 {
+  VoxelGrid grid{{1.0, 10, 5, 0.001}};
+  std::mt19937 rng{11};
+  std::uniform_real_distribution<double> u{0.05, 0.95};
+  std::normal_distribution<double> n{0.0, 0.01};
+  Eigen::Vector3d plane_point() { return {u(rng), u(rng), 0.5 + n(rng)}; }
+  Fig4() {
+    for (int i = 0; i < 300; ++i) grid.add(plane_point());
+    grid.finalize();
+  }
+  double cv(const std::vector<Eigen::Vector3d>& test) {
+    VoxelResiduals res;
+    res.reset(grid.size());
+    accumulate_residuals(grid, test, Pose6::Zero(), res);
+    const ChiSquareTable table(500);
+    return voxel_consensus(res.rss[0], res.count[0], table);
+  }
+};
+
+TEST(VoxelConsensus, Figure4CasesScoreBelowACleanMatch) {
+  Fig4 f;
+  std::vector<Eigen::Vector3d> clean, occluded, mismatch, outliers;
+  for (int i = 0; i < 60; ++i) clean.push_back(f.plane_point());
+  // Occlusion: a pole in front of the surface hides a third of it and returns instead.
+  for (int i = 0; i < 60; ++i) {
+    occluded.push_back(
+        i < 40 ? f.plane_point()
+               : Eigen::Vector3d(0.5 + f.n(f.rng), 0.2 + 0.6 * (i - 40) / 20.0, 0.25 + f.n(f.rng)));
+  }
+  // Feature mismatch: a plane through the same voxel at 60 degrees.
+  for (int i = 0; i < 60; ++i) {
+    const double a = f.u(f.rng) - 0.5, b = f.u(f.rng);
+    mismatch.emplace_back(0.5 + a * std::cos(1.047), b, 0.5 + a * std::sin(1.047));
+  }
+  // Outliers: the clean points plus 15 % anywhere in the voxel.
+  outliers = clean;
+  for (int i = 0; i < 9; ++i) outliers.emplace_back(f.u(f.rng), f.u(f.rng), f.u(f.rng));
+  const double cv_clean = f.cv(clean), cv_occl = f.cv(occluded), cv_mis = f.cv(mismatch),
+               cv_out = f.cv(outliers);
+  std::printf("Cv clean %.3f occlusion %.3f mismatch %.3f outliers %.3f\n", cv_clean, cv_occl,
+              cv_mis, cv_out);
+  EXPECT_GE(cv_clean, 0.9);
+  EXPECT_LT(cv_occl, cv_clean);
+  EXPECT_LT(cv_mis, cv_clean);
+  EXPECT_LT(cv_out, cv_clean);
+  // Too few test points: no Cv.
+  EXPECT_TRUE(std::isnan(f.cv({clean.begin(), clean.begin() + 4})));
+}
+
+// Paper Figure 5: directions to voxels around the sensor; the same number of low-Cv voxels,
+// clustered on one side or spread out.
+TEST(LocalizationConsensus, ClusteredLowConsensusCostsMoreThanSpread) {
+  std::vector<Eigen::Vector3d> dirs;
+  for (int i = 0; i < 48; ++i) {
+    const double az = 2 * 3.14159265358979 * i / 48.0;
+    const double el = (i % 3 - 1) * 0.3;
+    dirs.emplace_back(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+  }
+  std::vector<double> all_good(48, 1.0), clustered(48, 1.0), spread(48, 1.0);
+  for (int i = 0; i < 12; ++i) {
+    clustered[static_cast<std::size_t>(i)] = 0.1;   // one quarter of the view
+    spread[static_cast<std::size_t>(4 * i)] = 0.1;  // every fourth voxel
+  }
+  const double cm_all = localization_consensus(dirs, all_good);
+  const double cm_clustered = localization_consensus(dirs, clustered);
+  const double cm_spread = localization_consensus(dirs, spread);
+  std::printf("Cm all good %.4f, spread %.4f, clustered %.4f\n", cm_all, cm_spread, cm_clustered);
+  EXPECT_NEAR(cm_all, 1.0, 1e-12);
+  EXPECT_LT(cm_spread, 1.0);
+  EXPECT_LT(cm_clustered, cm_spread);
+  EXPECT_GT(cm_clustered, 0.0);
+}
+
+TEST(LocalizationConsensus, DegenerateGeometryGivesZero) {
+  std::vector<Eigen::Vector3d> line(10, Eigen::Vector3d::UnitX());
+  std::vector<double> cv(10, 1.0);
+  EXPECT_EQ(localization_consensus(line, cv), 0.0);
+}
+
+}  // namespace
+}  // namespace cndt::ndt
