@@ -50,8 +50,8 @@ Decoder::Decoder(Model model, const DecoderOptions& options)
     tail_[i] = time_ns_[i] | (static_cast<std::uint64_t>(ring_[i]) << 32);
   }
   min_count_u_ = static_cast<std::uint32_t>(std::ceil(min_count_));
-  count_span_u_ = static_cast<std::uint32_t>(std::floor(std::min(max_count_, 65535.0F))) -
-                  min_count_u_;
+  count_span_u_ =
+      static_cast<std::uint32_t>(std::floor(std::min(max_count_, 65535.0F))) - min_count_u_;
 }
 
 void Decoder::decode(core::ByteSpan payload, const PacketHeader& header,

@@ -22,10 +22,14 @@ int main(int argc, char** argv) {
   cndt::cli::DecodeArgs decode;
   cndt::cli::SimArgs sim;
   cndt::cli::RecordArgs record;
+  cndt::cli::ReplayArgs replay;
+  cndt::cli::EvalArgs eval;
   cndt::cli::register_info(app, info);
   cndt::cli::register_decode(app, decode);
   cndt::cli::register_sim(app, sim);
   cndt::cli::register_record(app, record);
+  cndt::cli::register_replay(app, replay);
+  cndt::cli::register_eval(app, eval);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -37,5 +41,7 @@ int main(int argc, char** argv) {
   if (app.got_subcommand("decode")) return cndt::cli::run_decode(decode);
   if (app.got_subcommand("sim")) return cndt::cli::run_sim(sim);
   if (app.got_subcommand("record")) return cndt::cli::run_record(record);
+  if (app.got_subcommand("replay")) return cndt::cli::run_replay(replay);
+  if (app.got_subcommand("eval")) return cndt::cli::run_eval(eval);
   return cndt::core::kExitUsage;
 }

@@ -58,8 +58,9 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
                       Neighbours neighbours) {
   const PoseDerivatives pd(x);
   ScoreResult r;
-  Eigen::Matrix<double, 3, 6> J;
+  Eigen::Matrix<double, 3, 6> J = Eigen::Matrix<double, 3, 6>::Zero();
   std::array<Eigen::Vector3d, 6> d2;
+  d2.fill(Eigen::Vector3d::Zero());
   constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
   constexpr int kOffsets[7][3] = {{0, 0, 0},  {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
                                   {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
@@ -68,7 +69,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     const Eigen::Vector3d v = pd.transform(p);
     const VoxelKey key = grid.key_of(v);
     bool have_derivatives = false;
-    Vector6d aJ;
+    Vector6d aJ = Vector6d::Zero();
     for (int n = 0; n < lookups; ++n) {
       const VoxelKey k{key.x + kOffsets[n][0], key.y + kOffsets[n][1], key.z + kOffsets[n][2]};
       const std::int64_t idx = grid.index_of(k);

@@ -102,4 +102,43 @@ TEST(CliRoundTrip, SimInfoDecode) {
   EXPECT_EQ(magic, "ply");
 }
 
+TEST(CliReplay, WritesTrajectoryScansAndSummaryThatEvalReads) {
+  cndt::test::TempDir dir;
+  CliRun r = run("sim --scene street --duration 1.5 --out " + dir.file("s"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("replay " + dir.file("s/capture.pcap") + " --out " + dir.file("r") + " --max-scans 6");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream tum(dir.file("r/trajectory.tum"));
+  int poses = 0;
+  for (std::string l; std::getline(tum, l);) poses += 1;
+  EXPECT_EQ(poses, 6);  // one per scan, the first (partial) one included
+  std::ifstream csv(dir.file("r/scans.csv"));
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header.rfind("time,cm,coarse_iterations,fine_iterations,voxels_before", 0), 0u);
+  std::stringstream summary;
+  summary << std::ifstream(dir.file("r/summary.json")).rdbuf();
+  for (const char* key : {"\"scans\": 6", "\"packets_ok\"", "\"packets_bad\": 0",
+                          "\"scans_dropped\"", "\"odometry_ms_p50\"", "\"odometry_ms_p99\"",
+                          "\"iterations_mean\"", "\"heap_allocations_in_odometry\"",
+                          "\"peak_rss_mb\"", "\"wall_s\"", "\"mode\": \"consensus\""}) {
+    EXPECT_NE(summary.str().find(key), std::string::npos) << key << " in " << summary.str();
+  }
+  r = run("eval --gt " + dir.file("s/groundtruth.tum") + " --est " + dir.file("r/trajectory.tum"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"ate_rmse_m\""), std::string::npos);
+  EXPECT_NE(r.output.find("\"matched\": 6"), std::string::npos) << r.output;
+}
+
+TEST(CliEval, BadTrajectoryFilesNameFileAndLine) {
+  cndt::test::TempDir dir;
+  std::ofstream(dir.file("gt.tum")) << "# header\n1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n";
+  std::ofstream(dir.file("bad.tum")) << "1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0\n";
+  CliRun r = run("eval --gt " + dir.file("gt.tum") + " --est " + dir.file("bad.tum"));
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("bad.tum:2"), std::string::npos) << r.output;
+  r = run("eval --gt " + dir.file("missing.tum") + " --est " + dir.file("gt.tum"));
+  EXPECT_EQ(r.code, 66) << r.output;
+}
+
 }  // namespace

@@ -67,6 +67,24 @@ struct SimArgs {
 void register_sim(CLI::App& app, SimArgs& args);
 int run_sim(const SimArgs& args);
 
+struct ReplayArgs {
+  std::string capture;
+  std::string out_dir;
+  std::string mode = "consensus";
+  std::string reference = "local-map";
+  std::size_t max_scans = 0;
+  CaptureArgs capture_args;
+};
+void register_replay(CLI::App& app, ReplayArgs& args);
+int run_replay(const ReplayArgs& args);
+
+struct EvalArgs {
+  std::string gt;
+  std::string est;
+};
+void register_eval(CLI::App& app, EvalArgs& args);
+int run_eval(const EvalArgs& args);
+
 struct RecordArgs {
   std::string out;
   std::string bind_address = "0.0.0.0";

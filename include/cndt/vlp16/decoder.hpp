@@ -73,7 +73,7 @@ class Decoder {
   std::array<std::uint16_t, 32> ring_{};
   std::array<std::uint64_t, 32> tail_{};  // time_ns | ring << 32: a point's last 8 bytes
   std::uint32_t min_count_u_ = 1, count_span_u_ = 0;  // valid counts: [min, min + span]
-  std::vector<float> cos_table_, sin_table_;  // by azimuth in 0.01 deg
+  std::vector<float> cos_table_, sin_table_;          // by azimuth in 0.01 deg
 };
 
 }  // namespace cndt::vlp16

@@ -1,0 +1,33 @@
+// Voxel-grid downsampling: one point (the centroid) per occupied cell. Buffers are sized once.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace cndt::slam {
+
+class Downsampler {
+ public:
+  /// `cell` metres; at most `capacity` output points (further cells are dropped and counted).
+  Downsampler(double cell, std::size_t capacity);
+  /// Replaces `out` with the centroids of `in`'s occupied cells, in first-seen order.
+  void run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Vector3d>& out);
+  [[nodiscard]] std::size_t dropped() const { return dropped_; }
+
+ private:
+  struct Cell {
+    std::int64_t key;
+    Eigen::Vector3d sum;
+    std::uint32_t count;
+  };
+  double inv_cell_;
+  std::vector<Cell> cells_;
+  std::vector<std::int32_t> table_;
+  std::vector<std::size_t> used_slots_;
+  std::size_t mask_;
+  std::size_t dropped_ = 0;
+};
+
+}  // namespace cndt::slam

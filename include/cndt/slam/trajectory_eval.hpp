@@ -1,0 +1,39 @@
+// Trajectory accuracy: absolute trajectory error after an SE(3) alignment, per-frame relative
+// pose error, and KITTI-style relative errors over path segments.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <vector>
+
+namespace cndt::slam {
+
+struct TimedPose {
+  double t = 0.0;  ///< seconds
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+
+struct FrameError {
+  double t = 0.0;
+  double translation = 0.0;  ///< m, relative pose error to the next frame
+  double rotation_deg = 0.0;
+};
+
+struct EvalResult {
+  std::size_t matched = 0;   ///< estimated poses with a ground-truth pose at their time
+  double path_length = 0.0;  ///< m, along the ground truth
+  double ate_rmse = 0.0,
+         ate_max = 0.0;        ///< m, after aligning the estimate (rotation + translation)
+  double rte_percent = 0.0;    ///< mean translational error over segments, % of their length
+  double rre_deg_per_m = 0.0;  ///< mean rotational error over segments, deg per metre
+  double rpe_translation_rmse = 0.0, rpe_rotation_rmse_deg = 0.0;  ///< frame to frame
+  std::vector<double> segment_lengths;  ///< the lengths the segment errors used
+  std::vector<FrameError> frames;
+};
+
+/// Pairs each estimated pose with the ground truth at its time (interpolated between ground-truth
+/// samples; poses outside the ground-truth span are left out) and computes the errors. Segment
+/// lengths are the KITTI ones scaled to the path: 10, 20, 40, ... m shorter than half the path.
+EvalResult evaluate(const std::vector<TimedPose>& ground_truth,
+                    const std::vector<TimedPose>& estimate);
+
+}  // namespace cndt::slam

@@ -1,0 +1,48 @@
+#include "cndt/slam/downsample.hpp"
+
+#include <bit>
+#include <cmath>
+
+namespace cndt::slam {
+
+Downsampler::Downsampler(double cell, std::size_t capacity) : inv_cell_(1.0 / cell) {
+  cells_.reserve(capacity);
+  const std::size_t slots = std::bit_ceil(std::max<std::size_t>(16, capacity * 2));
+  table_.assign(slots, -1);
+  used_slots_.reserve(capacity);
+  mask_ = slots - 1;
+}
+
+void Downsampler::run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Vector3d>& out) {
+  dropped_ = 0;
+  for (const Eigen::Vector3d& p : in) {
+    const auto x = static_cast<std::int64_t>(std::floor(p.x() * inv_cell_));
+    const auto y = static_cast<std::int64_t>(std::floor(p.y() * inv_cell_));
+    const auto z = static_cast<std::int64_t>(std::floor(p.z() * inv_cell_));
+    const std::int64_t key = ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
+    std::size_t s =
+        static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> 20) &
+        mask_;
+    while (table_[s] >= 0 && cells_[static_cast<std::size_t>(table_[s])].key != key)
+      s = (s + 1) & mask_;
+    if (table_[s] < 0) {
+      if (cells_.size() == cells_.capacity()) {
+        ++dropped_;
+        continue;
+      }
+      table_[s] = static_cast<std::int32_t>(cells_.size());
+      used_slots_.push_back(s);
+      cells_.push_back(Cell{key, Eigen::Vector3d::Zero(), 0});
+    }
+    Cell& c = cells_[static_cast<std::size_t>(table_[s])];
+    c.sum += p;
+    ++c.count;
+  }
+  out.clear();
+  for (const Cell& c : cells_) out.push_back(c.sum / c.count);
+  for (std::size_t s : used_slots_) table_[s] = -1;
+  used_slots_.clear();
+  cells_.clear();
+}
+
+}  // namespace cndt::slam

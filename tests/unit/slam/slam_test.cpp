@@ -1,0 +1,77 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "cndt/slam/downsample.hpp"
+#include "cndt/slam/trajectory_eval.hpp"
+
+namespace cndt::slam {
+namespace {
+
+TEST(Downsampler, OneCentroidPerCellAndABoundedOutput) {
+  std::vector<Eigen::Vector3d> in = {
+      {0.1, 0.1, 0.1}, {0.3, 0.1, 0.1}, {1.2, 0.1, 0.1}, {1.4, 0.3, 0.1}, {-0.1, 0.0, 0.0}};
+  std::vector<Eigen::Vector3d> out;
+  Downsampler d(1.0, 100);
+  d.run(in, out);
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_LT((out[0] - Eigen::Vector3d(0.2, 0.1, 0.1)).norm(), 1e-12);
+  EXPECT_LT((out[1] - Eigen::Vector3d(1.3, 0.2, 0.1)).norm(), 1e-12);
+  Downsampler small(1.0, 2);
+  small.run(in, out);
+  EXPECT_EQ(out.size(), 2u);
+  EXPECT_EQ(small.dropped(), 1u);
+}
+
+std::vector<TimedPose> line(int n, double step, double yaw_rate = 0.0) {
+  std::vector<TimedPose> v;
+  for (int i = 0; i < n; ++i) {
+    TimedPose p;
+    p.t = 0.1 * i;
+    p.pose.linear() = Eigen::AngleAxisd(yaw_rate * i, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    p.pose.translation() = Eigen::Vector3d(step * i, 0, 0);
+    v.push_back(p);
+  }
+  return v;
+}
+
+TEST(TrajectoryEval, IdenticalAndRigidlyMovedEstimatesHaveNoError) {
+  const auto gt = line(300, 0.5, 0.002);
+  auto moved = gt;
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  offset.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  offset.translation() = Eigen::Vector3d(5, -3, 1);
+  for (auto& p : moved) p.pose = offset * p.pose;
+  const EvalResult r = evaluate(gt, moved);
+  EXPECT_EQ(r.matched, 300u);
+  EXPECT_NEAR(r.path_length, 149.5, 0.5);
+  EXPECT_LT(r.ate_rmse, 1e-9);
+  EXPECT_LT(r.rte_percent, 1e-7);
+  EXPECT_LT(r.rpe_translation_rmse, 1e-9);
+}
+
+TEST(TrajectoryEval, ScaleErrorShowsAsRelativeTranslationError) {
+  const auto gt = line(300, 0.5);
+  const auto est = line(300, 0.505);  // 1 % too long
+  const EvalResult r = evaluate(gt, est);
+  EXPECT_NEAR(r.rte_percent, 1.0, 1e-6);
+  EXPECT_NEAR(r.rpe_translation_rmse, 0.005, 1e-9);
+  EXPECT_GT(r.ate_rmse, 0.1);
+}
+
+TEST(TrajectoryEval, InterpolatesGroundTruthAndSkipsPosesOutsideIt) {
+  const auto gt = line(100, 1.0);
+  std::vector<TimedPose> est;
+  for (int i = 0; i < 120; ++i) {
+    TimedPose p;
+    p.t = 0.05 + 0.1 * i;  // between ground-truth samples; the last 21 after its end
+    p.pose.translation() = Eigen::Vector3d(10.0 * p.t, 0, 0);
+    est.push_back(p);
+  }
+  const EvalResult r = evaluate(gt, est);
+  EXPECT_EQ(r.matched, 99u);
+  EXPECT_LT(r.ate_rmse, 1e-9);
+}
+
+}  // namespace
+}  // namespace cndt::slam
