@@ -73,6 +73,11 @@ void VoxelGrid::finalize() noexcept {
     cov = 0.5 * (cov + cov.transpose());
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
     Eigen::Vector3d ev = es.eigenvalues();
+    if (options_.drop_horizontal_lines && ev(1) < 0.05 * ev(2) &&
+        std::abs(es.eigenvectors().col(2).z()) < 0.5) {
+      v.has_gaussian = false;  // a ring arc: one dominant, nearly horizontal direction
+      continue;
+    }
     const double floor = std::max(ev.maxCoeff(), 1e-12) * options_.eigen_floor;
     ev = ev.cwiseMax(floor);  // planes and lines would otherwise be singular
     v.inv_cov = es.eigenvectors() * ev.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();

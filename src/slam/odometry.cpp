@@ -20,7 +20,7 @@ bool finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
 ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
     : options_(o),
-      grid_({o.voxel_size, o.max_map_voxels, 5, 0.001}),
+      grid_({o.voxel_size, o.max_map_voxels, 5, 0.001, o.drop_ring_arcs}),
       chi2_(o.max_scan_points),
       scan_sampler_(o.scan_cell, o.max_scan_points),
       map_sampler_(o.map_cell, o.max_scan_points) {
@@ -32,7 +32,8 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   residuals_.count.reserve(o.max_map_voxels);
   residuals_.rss.reserve(o.max_map_voxels);
   for (double size : o.bootstrap_voxel_sizes) {
-    bootstrap_grids_.emplace_back(ndt::VoxelGridOptions{size, o.max_map_voxels / 4, 5, 0.001});
+    bootstrap_grids_.emplace_back(
+        ndt::VoxelGridOptions{size, o.max_map_voxels / 4, 5, 0.001, o.drop_ring_arcs});
   }
 }
 

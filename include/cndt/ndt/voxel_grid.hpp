@@ -32,6 +32,9 @@ struct VoxelGridOptions {
   std::size_t capacity = 200'000;  ///< voxels held at most
   std::uint32_t min_points = 5;    ///< Gaussians need redundant points (paper: N >= 5)
   double eigen_floor = 0.001;      ///< eigenvalues raised to this fraction of the largest
+  /// Voxels whose points lie on a nearly horizontal line (a single ring arc) get no Gaussian
+  /// when set: such arcs move with the sensor and pull scan matching towards zero motion.
+  bool drop_horizontal_lines = false;
 };
 
 class VoxelGrid {

@@ -37,6 +37,7 @@ struct OdometryOptions {
   std::size_t max_scan_points = 150'000;
   std::size_t max_map_voxels = 400'000;
   std::size_t min_points = 200;  ///< fewer matched points: the scan is not matched
+  bool drop_ring_arcs = false;   ///< reference voxels holding a single ring arc get no Gaussian
   /// Without a motion prior (the first scans, or after a failed match) the scan is first matched
   /// on these coarser grids, widening the basin of convergence (ground rings that move with the
   /// sensor otherwise hold a match near zero motion).
