@@ -60,11 +60,12 @@ PositionError parse_position_packet(core::ByteSpan payload, PositionPacket& out)
   out.has_nmea = true;
   const std::string_view s = out.sentence();
   const auto star = s.find('*');
-  if (star != std::string_view::npos && star + 2 < s.size() + 0 && star >= 1) {
+  // "*hh": two hex digits after the star, XOR of every character between '$' and '*'.
+  if (star != std::string_view::npos && star + 2 < s.size()) {
     unsigned sum = 0;
     for (std::size_t i = 1; i < star; ++i) sum ^= static_cast<unsigned char>(s[i]);
     const int hi = hex_value(s[star + 1]);
-    const int lo = star + 2 < s.size() ? hex_value(s[star + 2]) : -1;
+    const int lo = hex_value(s[star + 2]);
     out.nmea_checksum_ok = hi >= 0 && lo >= 0 && static_cast<unsigned>(hi * 16 + lo) == sum;
   }
   const std::string_view id = field(s, 0);
