@@ -2,6 +2,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include "cndt/cli/commands.hpp"
 
@@ -10,6 +11,14 @@ namespace cndt::cli {
 int fail(const core::Error& error) {
   spdlog::error("{}", error.message);
   return error.code;
+}
+
+std::optional<core::Error> create_output_dir(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!ec) return std::nullopt;
+  return core::Error{core::kExitIoError,
+                     fmt::format("cannot create output folder '{}': {}", dir, ec.message())};
 }
 
 void warn_if_cut_short(const CaptureReport& r) {

@@ -77,12 +77,7 @@ int run_decode(const DecodeArgs& args) {
   ctx.dir = args.out_dir;
   ctx.format = parse_cloud_format(args.format).value_or(CloudFormat::kBin);
   ctx.complete_only = args.complete_only;
-  std::error_code ec;
-  std::filesystem::create_directories(ctx.dir, ec);
-  if (ec) {
-    spdlog::error("cannot create output folder '{}': {}", args.out_dir, ec.message());
-    return core::kExitIoError;
-  }
+  if (auto err = create_output_dir(args.out_dir)) return fail(*err);
   ctx.times.open(ctx.dir / "times.txt", std::ios::trunc);
   if (!ctx.times) {
     spdlog::error("cannot create '{}': {}", (ctx.dir / "times.txt").string(), std::strerror(errno));

@@ -92,12 +92,7 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
 int run_replay(const ReplayArgs& a) {
   auto options = to_capture_options(a.capture_args);
   if (!options) return fail(options.error());
-  std::error_code ec;
-  std::filesystem::create_directories(a.out_dir, ec);
-  if (ec) {
-    return fail({core::kExitIoError,
-                 fmt::format("cannot create output folder '{}': {}", a.out_dir, ec.message())});
-  }
+  if (auto err = create_output_dir(a.out_dir)) return fail(*err);
   slam::OdometryOptions oo;
   oo.mode = a.mode == "naive" ? slam::OdometryMode::kNaive : slam::OdometryMode::kConsensus;
   oo.reference =
@@ -135,7 +130,8 @@ int run_replay(const ReplayArgs& a) {
       "{{\n  \"scans\": {},\n  \"packets_ok\": {},\n  \"packets_bad\": {},\n  \"scans_dropped\": "
       "0,\n  \"lost_packets\": {},\n  \"odometry_ms_p50\": {:.3f},\n  \"odometry_ms_p99\": "
       "{:.3f},\n  \"iterations_mean\": {:.3f},\n  \"heap_allocations_in_odometry\": {},\n  "
-      "\"allocation_count_after_scan\": {},\n  \"peak_rss_mb\": {:.1f},\n  \"wall_s\": {:.3f},\n "
+      "\"heap_allocations_counted_after_scan\": {},\n  \"peak_rss_mb\": {:.1f},\n  \"wall_s\": "
+      "{:.3f},\n "
       " \"mode\": \"{}\",\n  \"reference\": \"{}\"\n}}\n",
       ctx.scans, r.driver.decoded_packets, r.driver.rejected_total(), r.assembler.lost_packets,
       percentile(ctx.ms, 0.5), percentile(ctx.ms, 0.99),

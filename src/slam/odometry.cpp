@@ -190,12 +190,10 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
     if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
   }
-  const Eigen::Isometry3d step = prev_pose_.inverse() * res.pose;
-  if (have_prev_) {
-    prev_motion_ = step;
-    prev_period_s_ = std::max(dt, 1e-3);
-    have_prev2_ = true;
-  }
+  // Past the first scan (returned above), so the motion between the last two scans is known.
+  prev_motion_ = prev_pose_.inverse() * res.pose;
+  prev_period_s_ = std::max(dt, 1e-3);
+  have_prev2_ = true;
   update_reference(res.pose);
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;

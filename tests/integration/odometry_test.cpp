@@ -10,32 +10,38 @@
 namespace cndt::slam {
 namespace {
 
-// The default odometry on a simulated street drive at 8 m/s: about 0.8 m and up to 1 degree of
-// pitch and yaw change between scans, with the ground in view (the rings that move with the
-// sensor are the known trap of scan-to-scan NDT).
-TEST(Odometry, TracksAStreetDriveFrameToFrameWithinThreeCentimetres) {
-  const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 3.0, 2, 4);
+// Simulates a street drive and hands every decoded scan to `sink`; returns the simulator's scan
+// starts (ground truth).
+template <class Sink>
+std::vector<sim::ScanStart> drive_street(double seconds, int movers, std::uint64_t seed,
+                                         Sink&& sink) {
+  const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, seconds, movers, seed);
   sim::LidarSimOptions so;
-  so.duration_s = 3.0;
-  so.seed = 4;
+  so.duration_s = seconds;
+  so.seed = seed;
   sim::LidarSimulator simulator(scene, so);
   vlp16::Driver driver({});
-  ConsensusOdometry odometry({});
-  std::vector<TimedPose> est;
-  auto sink = [&](core::Scan& scan) {
-    const OdometryResult r = odometry.process(scan);
-    EXPECT_TRUE(r.pose.matrix().allFinite());
-    est.push_back({static_cast<double>(scan.stamp.count()) * 1e-9, r.pose});
-  };
   sim::SimPacket p;
   while (simulator.next(p)) {
     driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
   }
   driver.finish(sink);
+  return simulator.scan_starts();
+}
+
+// The default odometry on a simulated street drive at 8 m/s: about 0.8 m and up to 1 degree of
+// pitch and yaw change between scans, with the ground in view (the rings that move with the
+// sensor are the known trap of scan-to-scan NDT).
+TEST(Odometry, TracksAStreetDriveFrameToFrameWithinThreeCentimetres) {
+  ConsensusOdometry odometry({});
+  std::vector<TimedPose> est;
+  const auto starts = drive_street(3.0, 2, 4, [&](core::Scan& scan) {
+    const OdometryResult r = odometry.process(scan);
+    EXPECT_TRUE(r.pose.matrix().allFinite());
+    est.push_back({static_cast<double>(scan.stamp.count()) * 1e-9, r.pose});
+  });
   std::vector<TimedPose> gt;
-  for (const auto& s : simulator.scan_starts()) {
-    gt.push_back({static_cast<double>(s.time_ns) * 1e-9, s.pose});
-  }
+  for (const auto& s : starts) gt.push_back({static_cast<double>(s.time_ns) * 1e-9, s.pose});
   ASSERT_GE(est.size(), 29u);
   // Frame-to-frame motion once tracking has settled. A start at full speed has no motion
   // prior: the first, partial scan cannot be deskewed and the first matches are off by up to
@@ -52,36 +58,19 @@ TEST(Odometry, TracksAStreetDriveFrameToFrameWithinThreeCentimetres) {
   EXPECT_LT(worst, 0.03);
 }
 
-}  // namespace
-}  // namespace cndt::slam
-
-namespace cndt::slam {
-namespace {
-
 // Paper Figure 9: with the reference held, Cm falls as the test scan is moved away from its true
 // pose, in x (0 to 2 m) and in roll (0 to 5 deg). Street scene, a pair of consecutive scans.
 TEST(Figure9, CmFallsWithThePerturbation) {
-  const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 1.2, 4, 9);
-  sim::LidarSimOptions so;
-  so.duration_s = 1.2;
-  so.seed = 9;
-  sim::LidarSimulator simulator(scene, so);
-  vlp16::Driver driver({});
   std::vector<std::vector<std::pair<Eigen::Vector3d, double>>> scans;  // point, seconds
-  auto sink = [&](core::Scan& scan) {
+  const auto starts = drive_street(1.2, 4, 9, [&](core::Scan& scan) {
     std::vector<std::pair<Eigen::Vector3d, double>> pts;
     for (const auto& p : scan.points) {
       const Eigen::Vector3d v(p.x, p.y, p.z);
       if (v.norm() > 1.0) pts.emplace_back(v, static_cast<double>(p.time_ns) * 1e-9);
     }
     scans.push_back(std::move(pts));
-  };
-  sim::SimPacket p;
-  while (simulator.next(p)) {
-    driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
-  }
+  });
   ASSERT_GE(scans.size(), 9u);
-  const auto& starts = simulator.scan_starts();
   // Undistort scan i with the true motion to the next scan start, as the paper's data was.
   auto deskewed = [&](std::size_t i) {
     const Eigen::Isometry3d m = starts[i].pose.inverse() * starts[i + 1].pose;

@@ -13,6 +13,8 @@ namespace cndt::cli {
 
 /// Logs a setup error as one line and returns its exit code.
 int fail(const core::Error& error);
+/// Creates an output folder (and its parents); the error names the folder.
+std::optional<core::Error> create_output_dir(const std::string& dir);
 /// Logs one warning when the capture ended in the middle of a record.
 void warn_if_cut_short(const CaptureReport& report);
 
