@@ -1,6 +1,8 @@
 #include "cndt/ndt/ndt_score.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cndt::ndt {
 namespace {
@@ -53,26 +55,67 @@ void PoseDerivatives::second(const Eigen::Vector3d& p, std::array<Eigen::Vector3
   for (std::size_t i = 0; i < 6; ++i) d2[i] = d2_[i] * p;
 }
 
+namespace {
+constexpr int kOffsets[7][3] = {{0, 0, 0},  {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                                {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+constexpr std::int32_t kUnset = std::numeric_limits<std::int32_t>::min();
+}  // namespace
+
+LookupCache::LookupCache(std::size_t points) : capacity_(points) {
+  keys_.reserve(points);
+  indices_.reserve(points * 7);
+}
+
+void LookupCache::reset(std::size_t points) {
+  points = std::min(points, capacity_);
+  keys_.assign(points, VoxelKey{kUnset, 0, 0});
+  indices_.assign(points * 7, -1);
+}
+
 ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
-                      const core::Pose6& x, bool derivatives, VoxelMask mask,
-                      Neighbours neighbours) {
+                      const core::Pose6& x, bool derivatives, VoxelMask mask, Neighbours neighbours,
+                      LookupCache* cache) {
   const PoseDerivatives pd(x);
   ScoreResult r;
-  Eigen::Matrix<double, 3, 6> J = Eigen::Matrix<double, 3, 6>::Zero();
-  std::array<Eigen::Vector3d, 6> d2;
-  d2.fill(Eigen::Vector3d::Zero());
-  constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
-  constexpr int kOffsets[7][3] = {{0, 0, 0},  {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
-                                  {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
   const int lookups = static_cast<int>(neighbours);
-  for (const Eigen::Vector3d& p : points) {
+  bool cached = cache != nullptr;
+  if (cached && (cache->grid_ != &grid || cache->version_ != grid.version() ||
+                 cache->lookups_ != lookups || cache->keys_.size() < points.size())) {
+    cached = points.size() <= cache->capacity_;
+    if (cached) {
+      cache->reset(points.size());
+      cache->grid_ = &grid;
+      cache->version_ = grid.version();
+      cache->lookups_ = lookups;
+    }
+  }
+  // With e_v = exp(-q_v^T A_v q_v / 2) and a_v = A_v q_v for each voxel v a point is scored
+  // against, the point adds (eq 5 and its derivatives, J = dq/dx, the same for every v):
+  //   S -= sum e_v;  gradient += J^T b;  Hessian += J^T M J + b^T d2q/dx_k dx_l,
+  // where b = sum e_v a_v and M = sum e_v (A_v - a_v a_v^T). Summing b and M over the voxels
+  // first leaves one Jacobian product per point.
+  Eigen::Vector3d g_t = Eigen::Vector3d::Zero(), g_r = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d h_tt = Eigen::Matrix3d::Zero(), h_tr = Eigen::Matrix3d::Zero(),
+                  h_rr = Eigen::Matrix3d::Zero();
+  constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+  std::array<std::int32_t, 7> local{};
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d& p = points[i];
     const Eigen::Vector3d v = pd.transform(p);
     const VoxelKey key = grid.key_of(v);
-    bool have_derivatives = false;
-    Vector6d aJ = Vector6d::Zero();
+    std::int32_t* found = cached ? &cache->indices_[i * 7] : local.data();
+    if (!cached || !(cache->keys_[i] == key)) {  // not the voxel this point was in last time
+      if (cached) cache->keys_[i] = key;
+      for (int n = 0; n < lookups; ++n) {
+        const VoxelKey k{key.x + kOffsets[n][0], key.y + kOffsets[n][1], key.z + kOffsets[n][2]};
+        found[n] = static_cast<std::int32_t>(grid.index_of(k));
+      }
+    }
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    bool any = false;
     for (int n = 0; n < lookups; ++n) {
-      const VoxelKey k{key.x + kOffsets[n][0], key.y + kOffsets[n][1], key.z + kOffsets[n][2]};
-      const std::int64_t idx = grid.index_of(k);
+      const std::int32_t idx = found[n];
       if (idx < 0) continue;
       const Voxel& vox = grid.voxels()[static_cast<std::size_t>(idx)];
       if (!vox.has_gaussian || (mask != nullptr && (*mask)[static_cast<std::size_t>(idx)] == 0)) {
@@ -83,24 +126,36 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
       const double e = std::exp(-0.5 * q.dot(a));
       r.score -= e;  // eq 5
       ++r.matched;
+      any = true;
       if (!derivatives) continue;
-      if (!have_derivatives) {  // J and d2 depend on the point only, not on the voxel
-        pd.jacobian(p, J);
-        pd.second(p, d2);
-        have_derivatives = true;
-      }
-      aJ.noalias() = J.transpose() * a;  // q^T A dq/dx_k
-      r.gradient += e * aJ;              // dS/dx_k = e q^T A J_k
-      // d2S/dx_k dx_l = e (-(q^T A J_k)(q^T A J_l) + J_k^T A J_l + q^T A d2q/dx_k dx_l)
-      const Eigen::Matrix<double, 3, 6> AJ = vox.inv_cov * J;
-      Matrix6d h = J.transpose() * AJ - aJ * aJ.transpose();
-      for (int k2 = 0; k2 < 3; ++k2) {
-        for (int l = 0; l < 3; ++l) {
-          h(3 + k2, 3 + l) += a.dot(d2[static_cast<std::size_t>(kPair[k2][l])]);
-        }
-      }
-      r.hessian += e * h;
+      b += e * a;
+      M.noalias() += e * (vox.inv_cov - a * a.transpose());
     }
+    if (!derivatives || !any) continue;
+    // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]
+    Eigen::Matrix3d Jr;
+    for (int k = 0; k < 3; ++k) Jr.col(k) = pd.d1(k) * p;
+    g_t += b;
+    g_r.noalias() += Jr.transpose() * b;
+    h_tt += M;
+    const Eigen::Matrix3d MJr = M * Jr;
+    h_tr += MJr;
+    h_rr.noalias() += Jr.transpose() * MJr;
+    const Eigen::Vector3d Rb0 = pd.d2(0).transpose() * b, Rb1 = pd.d2(1).transpose() * b,
+                          Rb2 = pd.d2(2).transpose() * b, Rb3 = pd.d2(3).transpose() * b,
+                          Rb4 = pd.d2(4).transpose() * b, Rb5 = pd.d2(5).transpose() * b;
+    const std::array<double, 6> s2 = {Rb0.dot(p), Rb1.dot(p), Rb2.dot(p),
+                                      Rb3.dot(p), Rb4.dot(p), Rb5.dot(p)};
+    for (int k = 0; k < 3; ++k) {
+      for (int l = 0; l < 3; ++l) h_rr(k, l) += s2[static_cast<std::size_t>(kPair[k][l])];
+    }
+  }
+  if (derivatives) {
+    r.gradient << g_t, g_r;
+    r.hessian.topLeftCorner<3, 3>() = h_tt;
+    r.hessian.topRightCorner<3, 3>() = h_tr;
+    r.hessian.bottomLeftCorner<3, 3>() = h_tr.transpose();
+    r.hessian.bottomRightCorner<3, 3>() = h_rr;
   }
   return r;
 }

@@ -6,10 +6,11 @@
 namespace cndt::ndt {
 
 NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
-                          const core::Pose6& initial, const NewtonOptions& o, VoxelMask mask) {
+                          const core::Pose6& initial, const NewtonOptions& o, VoxelMask mask,
+                          LookupCache* cache) {
   NewtonResult res;
   res.pose = initial;
-  ScoreResult cur = ndt_score(grid, points, res.pose, true, mask, o.neighbours);
+  ScoreResult cur = ndt_score(grid, points, res.pose, true, mask, o.neighbours, cache);
   res.score = cur.score;
   res.matched = cur.matched;
   res.hessian = cur.hessian;
@@ -28,15 +29,18 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     const double scale = std::min({1.0, o.max_translation_step / std::max(tn, 1e-12),
                                    o.max_rotation_step / std::max(rn, 1e-12)});
     step *= scale;
-    // Backtracking line search (Armijo) on S.
+    // Backtracking line search (Armijo) on S. The full step is usually accepted, so its trial
+    // carries the derivatives the next iteration needs.
     const double slope = cur.gradient.dot(step);
     double t = 1.0;
     core::Pose6 next = res.pose + step;
-    ScoreResult trial = ndt_score(grid, points, next, false, mask, o.neighbours);
+    ScoreResult trial = ndt_score(grid, points, next, true, mask, o.neighbours, cache);
+    bool trial_has_derivatives = true;
     for (int k = 0; k < 10 && trial.score > cur.score + 1e-4 * t * slope; ++k) {
       t *= 0.5;
       next = res.pose + t * step;
-      trial = ndt_score(grid, points, next, false, mask, o.neighbours);
+      trial = ndt_score(grid, points, next, false, mask, o.neighbours, cache);
+      trial_has_derivatives = false;
     }
     if (trial.score > cur.score) {
       res.converged = true;  // no step improves S: at the minimum to numerical precision
@@ -44,7 +48,9 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     }
     const double change = std::abs(trial.score - cur.score) / std::max(1.0, std::abs(cur.score));
     res.pose = next;
-    cur = ndt_score(grid, points, res.pose, true, mask, o.neighbours);
+    cur = trial_has_derivatives
+              ? trial
+              : ndt_score(grid, points, res.pose, true, mask, o.neighbours, cache);
     res.score = cur.score;
     res.matched = cur.matched;
     res.hessian = cur.hessian;

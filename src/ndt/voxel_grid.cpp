@@ -1,6 +1,8 @@
 #include "cndt/ndt/voxel_grid.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 
@@ -16,7 +18,12 @@ std::uint64_t hash(const VoxelKey& k) {
 
 VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
     : options_(options), inv_size_(1.0 / options.voxel_size) {
+  // Versions are unique across grids (the high half numbers the grid), so that a lookup cache
+  // never mistakes a new grid at a reused address for the one it was filled from.
+  static std::atomic<std::uint64_t> grids{0};
+  version_ = (grids.fetch_add(1, std::memory_order_relaxed) + 1) << 32;
   voxels_.reserve(options.capacity);
+  dirty_.reserve(options.capacity);
   // Load factor at most one half.
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(16, options.capacity * 2));
   table_.assign(slots, -1);
@@ -27,6 +34,10 @@ VoxelKey VoxelGrid::key_of(const Eigen::Vector3d& p) const noexcept {
   return {static_cast<std::int32_t>(std::floor(p.x() * inv_size_)),
           static_cast<std::int32_t>(std::floor(p.y() * inv_size_)),
           static_cast<std::int32_t>(std::floor(p.z() * inv_size_))};
+}
+
+Eigen::Vector3d VoxelGrid::corner(const VoxelKey& k) const noexcept {
+  return Eigen::Vector3d(k.x, k.y, k.z) * options_.voxel_size;
 }
 
 std::size_t VoxelGrid::slot_of(const VoxelKey& k) const noexcept {
@@ -44,6 +55,12 @@ const Voxel* VoxelGrid::find(const VoxelKey& k) const noexcept {
   return i >= 0 ? &voxels_[static_cast<std::size_t>(i)] : nullptr;
 }
 
+void VoxelGrid::mark_dirty(Voxel& v, std::size_t index) noexcept {
+  if (v.dirty) return;
+  v.dirty = true;
+  dirty_.push_back(static_cast<std::uint32_t>(index));  // at most one entry per voxel
+}
+
 bool VoxelGrid::add(const Eigen::Vector3d& p) noexcept {
   const VoxelKey k = key_of(p);
   const std::size_t s = slot_of(k);
@@ -55,39 +72,87 @@ bool VoxelGrid::add(const Eigen::Vector3d& p) noexcept {
     table_[s] = static_cast<std::int32_t>(voxels_.size());
     voxels_.emplace_back();
     voxels_.back().key = k;
+    ++version_;  // a lookup that found nothing here would now find this voxel
+  } else if (voxels_[static_cast<std::size_t>(table_[s])].count == 0) {
+    --empty_;  // a voxel emptied by remove() fills again
   }
-  Voxel& v = voxels_[static_cast<std::size_t>(table_[s])];
+  const auto index = static_cast<std::size_t>(table_[s]);
+  Voxel& v = voxels_[index];
+  const Eigen::Vector3d q = p - corner(k);
   ++v.count;                                   // eq 3
-  v.sum += p;                                  // eq 1
-  v.sum_outer.noalias() += p * p.transpose();  // eq 2
+  v.sum += q;                                  // eq 1
+  v.sum_outer.noalias() += q * q.transpose();  // eq 2
+  mark_dirty(v, index);
   return true;
 }
 
-void VoxelGrid::finalize() noexcept {
-  for (Voxel& v : voxels_) {
-    v.has_gaussian = v.count >= options_.min_points;
-    if (!v.has_gaussian) continue;
-    const double n = v.count;
-    v.mean = v.sum / n;                                                   // eq 4, mean
-    Eigen::Matrix3d cov = v.sum_outer / n - v.mean * v.mean.transpose();  // eq 4, covariance
-    cov = 0.5 * (cov + cov.transpose());
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-    Eigen::Vector3d ev = es.eigenvalues();
-    if (options_.drop_horizontal_lines && ev(1) < 0.05 * ev(2) &&
-        std::abs(es.eigenvectors().col(2).z()) < 0.5) {
-      v.has_gaussian = false;  // a ring arc: one dominant, nearly horizontal direction
-      continue;
-    }
-    const double floor = std::max(ev.maxCoeff(), 1e-12) * options_.eigen_floor;
-    ev = ev.cwiseMax(floor);  // planes and lines would otherwise be singular
-    v.inv_cov = es.eigenvectors() * ev.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+bool VoxelGrid::remove(const Eigen::Vector3d& p) noexcept {
+  const VoxelKey k = key_of(p);
+  const std::int32_t i = table_[slot_of(k)];
+  if (i < 0 || voxels_[static_cast<std::size_t>(i)].count == 0) return false;
+  Voxel& v = voxels_[static_cast<std::size_t>(i)];
+  if (--v.count == 0) {
+    ++empty_;
+    // Exact zeros, so that round-off cannot build up in a voxel that empties and refills.
+    v.sum.setZero();
+    v.sum_outer.setZero();
+  } else {
+    const Eigen::Vector3d q = p - corner(k);
+    v.sum -= q;
+    v.sum_outer.noalias() -= q * q.transpose();
   }
+  mark_dirty(v, static_cast<std::size_t>(i));
+  return true;
+}
+
+void VoxelGrid::derive(Voxel& v) const noexcept {
+  v.has_gaussian = v.count >= options_.min_points;
+  if (!v.has_gaussian) return;
+  const double n = v.count;
+  const Eigen::Vector3d m = v.sum / n;
+  v.mean = corner(v.key) + m;                                 // eq 4, mean
+  Eigen::Matrix3d cov = v.sum_outer / n - m * m.transpose();  // eq 4, covariance
+  cov = 0.5 * (cov + cov.transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.compute(cov);
+  Eigen::Vector3d ev = es.eigenvalues();
+  if (options_.drop_horizontal_lines && ev(1) < 0.05 * ev(2) &&
+      std::abs(es.eigenvectors().col(2).z()) < 0.5) {
+    v.has_gaussian = false;  // a ring arc: one dominant, nearly horizontal direction
+    return;
+  }
+  const double floor = std::max(ev.maxCoeff(), 1e-12) * options_.eigen_floor;
+  ev = ev.cwiseMax(floor);  // planes and lines would otherwise be singular
+  v.inv_cov = es.eigenvectors() * ev.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+}
+
+void VoxelGrid::finalize() noexcept {
+  for (std::uint32_t i : dirty_) {
+    Voxel& v = voxels_[i];
+    v.dirty = false;
+    derive(v);
+  }
+  dirty_.clear();
+}
+
+void VoxelGrid::compact() noexcept {
+  finalize();
+  std::erase_if(voxels_, [](const Voxel& v) { return v.count == 0; });  // keeps the capacity
+  ++version_;
+  std::fill(table_.begin(), table_.end(), -1);
+  for (std::size_t i = 0; i < voxels_.size(); ++i) {
+    table_[slot_of(voxels_[i].key)] = static_cast<std::int32_t>(i);
+  }
+  empty_ = 0;
 }
 
 void VoxelGrid::clear() noexcept {
   voxels_.clear();
+  dirty_.clear();
   std::fill(table_.begin(), table_.end(), -1);
   refused_ = 0;
+  empty_ = 0;
+  ++version_;
 }
 
 }  // namespace cndt::ndt

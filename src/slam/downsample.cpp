@@ -13,36 +13,52 @@ Downsampler::Downsampler(double cell, std::size_t capacity) : inv_cell_(1.0 / ce
   mask_ = slots - 1;
 }
 
-void Downsampler::run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Vector3d>& out) {
-  dropped_ = 0;
-  for (const Eigen::Vector3d& p : in) {
-    const auto x = static_cast<std::int64_t>(std::floor(p.x() * inv_cell_));
-    const auto y = static_cast<std::int64_t>(std::floor(p.y() * inv_cell_));
-    const auto z = static_cast<std::int64_t>(std::floor(p.z() * inv_cell_));
-    const std::int64_t key = ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
-    std::size_t s =
-        static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> 20) &
-        mask_;
-    while (table_[s] >= 0 && cells_[static_cast<std::size_t>(table_[s])].key != key)
-      s = (s + 1) & mask_;
-    if (table_[s] < 0) {
-      if (cells_.size() == cells_.capacity()) {
-        ++dropped_;
-        continue;
-      }
-      table_[s] = static_cast<std::int32_t>(cells_.size());
-      used_slots_.push_back(s);
-      cells_.push_back(Cell{key, Eigen::Vector3d::Zero(), 0});
-    }
-    Cell& c = cells_[static_cast<std::size_t>(table_[s])];
-    c.sum += p;
-    ++c.count;
+void Downsampler::bin(const Eigen::Vector3d& p, double t) {
+  const auto x = static_cast<std::int64_t>(std::floor(p.x() * inv_cell_));
+  const auto y = static_cast<std::int64_t>(std::floor(p.y() * inv_cell_));
+  const auto z = static_cast<std::int64_t>(std::floor(p.z() * inv_cell_));
+  const std::int64_t key = ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
+  std::size_t s =
+      static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> 20) &
+      mask_;
+  while (table_[s] >= 0 && cells_[static_cast<std::size_t>(table_[s])].key != key) {
+    s = (s + 1) & mask_;
   }
-  out.clear();
-  for (const Cell& c : cells_) out.push_back(c.sum / c.count);
+  if (table_[s] < 0) {
+    if (cells_.size() == cells_.capacity()) {
+      ++dropped_;
+      return;
+    }
+    table_[s] = static_cast<std::int32_t>(cells_.size());
+    used_slots_.push_back(s);
+    cells_.push_back(Cell{key, Eigen::Vector3d::Zero(), 0.0, 0});
+  }
+  Cell& c = cells_[static_cast<std::size_t>(table_[s])];
+  c.sum += p;
+  c.time_sum += t;
+  ++c.count;
+}
+
+void Downsampler::reset() {
   for (std::size_t s : used_slots_) table_[s] = -1;
   used_slots_.clear();
   cells_.clear();
+}
+
+void Downsampler::run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Vector3d>& out) {
+  dropped_ = 0;
+  for (const Eigen::Vector3d& p : in) bin(p, 0.0);
+  out.clear();
+  for (const Cell& c : cells_) out.push_back(c.sum / c.count);
+  reset();
+}
+
+void Downsampler::run(std::span<const TimedPoint> in, std::vector<TimedPoint>& out) {
+  dropped_ = 0;
+  for (const TimedPoint& p : in) bin(p.p, p.t);
+  out.clear();
+  for (const Cell& c : cells_) out.push_back({c.sum / c.count, c.time_sum / c.count});
+  reset();
 }
 
 }  // namespace cndt::slam

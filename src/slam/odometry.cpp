@@ -22,97 +22,133 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
     : options_(o),
       grid_({o.voxel_size, o.max_map_voxels, 5, 0.001, o.drop_ring_arcs}),
       chi2_(o.max_scan_points),
-      scan_sampler_(o.scan_cell, o.max_scan_points),
-      map_sampler_(o.map_cell, o.max_scan_points) {
+      lookup_cache_(o.max_scan_points),
+      map_sampler_(o.map_cell, o.max_scan_points),
+      scan_sampler_(o.scan_cell, o.max_scan_points) {
   raw_.reserve(o.max_scan_points);
+  map_src_.reserve(o.max_scan_points);
+  scan_src_.reserve(o.max_scan_points);
   test_.reserve(o.max_scan_points);
-  map_points_.reserve(o.max_scan_points * (o.local_map_scans + 1));
+  cv_points_.reserve(o.max_scan_points);
+  newest_src_.reserve(o.max_scan_points);
+  scratch_.reserve(o.max_scan_points);
+  const std::size_t slots =
+      o.reference == Reference::kPreviousScan ? 1 : std::max<std::size_t>(1, o.local_map_scans);
+  history_.resize(slots);
+  for (auto& h : history_) h.reserve(o.max_scan_points);
   mask_.reserve(o.max_map_voxels);
   cv_.reserve(o.max_map_voxels);
   residuals_.count.reserve(o.max_map_voxels);
   residuals_.rss.reserve(o.max_map_voxels);
-  for (double size : o.bootstrap_voxel_sizes) {
-    bootstrap_grids_.emplace_back(
-        ndt::VoxelGridOptions{size, o.max_map_voxels / 4, 5, 0.001, o.drop_ring_arcs});
+  for (double size : o.pyramid_voxel_sizes) {
+    pyramid_.emplace_back(
+        ndt::VoxelGridOptions{size, o.max_map_voxels / 4, 5, o.pyramid_eigen_floor, true});
   }
 }
 
-core::Pose6 ConsensusOdometry::bootstrap(const core::Pose6& x0) {
+core::Pose6 ConsensusOdometry::coarse_to_fine(const core::Pose6& x0) {
   core::Pose6 x = x0;
-  for (ndt::VoxelGrid& g : bootstrap_grids_) {
-    g.clear();
-    for (const auto& scan_points : history_) {
-      for (const auto& p : scan_points) g.add(p);
-    }
-    g.finalize();
-    x = ndt::newton_solve(g, test_, x, options_.coarse).pose;
+  for (ndt::VoxelGrid& g : pyramid_) {
+    x = ndt::newton_solve(g, test_, x, options_.pyramid, nullptr, &lookup_cache_).pose;
   }
   return x;
 }
 
-void ConsensusOdometry::deskew(const core::Scan& scan, const Eigen::Isometry3d& motion,
-                               double scan_period_s) {
-  raw_.clear();
-  const double min2 = options_.min_range * options_.min_range;
-  const double max2 = options_.max_range * options_.max_range;
-  const bool undistort = options_.deskew && scan_period_s > 0.0;
-  const Eigen::AngleAxisd aa(motion.linear());
-  for (const core::Point& p : scan.points) {
-    const Eigen::Vector3d v(p.x, p.y, p.z);
-    const double r2 = v.squaredNorm();
-    if (r2 < min2 || r2 > max2 || !v.allFinite()) continue;
-    if (!undistort) {
-      raw_.push_back(v);
-      continue;
-    }
-    // Sensor pose at the point's firing time relative to the scan stamp: a fraction of the
-    // predicted motion over one scan period.
-    const double a = static_cast<double>(p.time_ns) * 1e-9 / scan_period_s;
-    const Eigen::Matrix3d R = Eigen::AngleAxisd(aa.angle() * a, aa.axis()).toRotationMatrix();
-    raw_.push_back(R * v + a * motion.translation());
+void ConsensusOdometry::add_to_grids(const std::vector<Eigen::Vector3d>& points) {
+  for (const auto& p : points) {
+    grid_.add(p);
+    for (ndt::VoxelGrid& g : pyramid_) g.add(p);
   }
+}
+
+void ConsensusOdometry::remove_from_grids(const std::vector<Eigen::Vector3d>& points) {
+  for (const auto& p : points) {
+    grid_.remove(p);
+    for (ndt::VoxelGrid& g : pyramid_) g.remove(p);
+  }
+}
+
+void ConsensusOdometry::finalize_grids() {
+  grid_.finalize();
+  if (grid_.refused_points() > 0 || grid_.empty_voxels() * 4 > grid_.size()) grid_.compact();
+  for (ndt::VoxelGrid& g : pyramid_) {
+    g.finalize();
+    if (g.refused_points() > 0 || g.empty_voxels() * 4 > g.size()) g.compact();
+  }
+}
+
+void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
+                               std::vector<Eigen::Vector3d>& out) const {
+  out.clear();
+  if (!options_.deskew || period_s_ <= 0.0) {
+    for (const TimedPoint& p : in) out.push_back(p.p);
+    return;
+  }
+  // Sensor pose at a point's firing time relative to the scan stamp: the fraction a = t / period
+  // of the motion over one scan period, its rotation by Rodrigues' formula about the fixed axis.
+  const Eigen::AngleAxisd aa(motion.linear());
+  const Eigen::Vector3d k = aa.axis();
+  const double angle = aa.angle();
+  const Eigen::Vector3d t = motion.translation();
+  const double inv_period = 1.0 / period_s_;
+  for (const TimedPoint& p : in) {
+    const double a = p.t * inv_period;
+    const double s = std::sin(a * angle), c1 = 1.0 - std::cos(a * angle);
+    const Eigen::Vector3d kxv = k.cross(p.p);
+    out.push_back(p.p + s * kxv + c1 * k.cross(kxv) + a * t);
+  }
+}
+
+void ConsensusOdometry::deskew_all(const Eigen::Isometry3d& motion) {
+  deskew(scan_src_, motion, test_);
+  deskew(map_src_, motion, cv_points_);
 }
 
 double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>& cv) {
   residuals_.reset(grid_.size());
-  ndt::accumulate_residuals(grid_, raw_, x, residuals_);
+  ndt::accumulate_residuals(grid_, cv_points_, x, residuals_);
   ndt::voxel_consensus_all(residuals_, chi2_, {}, cv);
   return ndt::localization_consensus(grid_, cv, x.head<3>());
 }
 
+void ConsensusOdometry::replace_newest(const std::vector<Eigen::Vector3d>& points,
+                                       const Eigen::Isometry3d& pose) {
+  const std::size_t newest = (history_head_ + history_size_ - 1) % history_.size();
+  std::vector<Eigen::Vector3d>& slot = history_[newest];
+  remove_from_grids(slot);
+  slot.clear();
+  for (const auto& p : points) slot.push_back(pose * p);
+  add_to_grids(slot);
+  finalize_grids();
+}
+
 void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
-  const std::size_t keep = options_.reference == Reference::kPreviousScan
-                               ? 1
-                               : std::max<std::size_t>(1, options_.local_map_scans);
-  if (history_.size() == keep) {
-    // Reuse the oldest buffer for the newest scan.
-    history_.push_back(std::move(history_.front()));
-    history_.pop_front();
-  } else {
-    history_.emplace_back();
-    history_.back().reserve(options_.max_scan_points);
+  const Eigen::Isometry3d since = last_keyframe_pose_.inverse() * pose;
+  const bool due = history_size_ == 0 || options_.reference == Reference::kPreviousScan ||
+                   since.translation().norm() >= options_.map_min_translation ||
+                   Eigen::AngleAxisd(since.linear()).angle() >= options_.map_min_rotation;
+  if (!due) return;
+  if (history_size_ == history_.size()) {  // the oldest scan leaves the reference
+    remove_from_grids(history_[history_head_]);
+    history_head_ = (history_head_ + 1) % history_.size();
+    --history_size_;
   }
-  std::vector<Eigen::Vector3d>& slot = history_.back();
-  map_sampler_.run(raw_, slot);
-  for (auto& p : slot) p = pose * p;
-  grid_.clear();
-  for (const auto& scan_points : history_) {
-    for (const auto& p : scan_points) grid_.add(p);
-  }
-  grid_.finalize();
+  std::vector<Eigen::Vector3d>& slot = history_[(history_head_ + history_size_) % history_.size()];
+  ++history_size_;
+  slot.clear();
+  for (const auto& p : cv_points_) slot.push_back(pose * p);
+  add_to_grids(slot);  // a full grid refuses points: compacted below
+  finalize_grids();
+  last_keyframe_pose_ = pose;
 }
 
 bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
-  core::Pose6 x = x0;
-  bool converged = false;
+  ndt::NewtonResult r;
   if (options_.mode == OdometryMode::kNaive) {
-    const ndt::NewtonResult r = ndt::newton_solve(grid_, test_, x0, options_.naive);
-    x = r.pose;
-    converged = r.converged;
-    res.fine_iterations += r.iterations;
-    res.points = r.matched;
+    r = ndt::newton_solve(grid_, test_, x0, options_.naive, nullptr, &lookup_cache_);
   } else {
-    const ndt::NewtonResult coarse = ndt::newton_solve(grid_, test_, x0, options_.coarse);
+    const ndt::NewtonResult coarse =
+        ndt::newton_solve(grid_, test_, x0, options_.coarse, nullptr, &lookup_cache_);
     res.coarse_iterations += coarse.iterations;
     // Cv of every reference voxel at the coarse pose (eqs 8-9), then the cut at eta.
     consensus_at(coarse.pose, cv_);
@@ -125,15 +161,12 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
         if (mask_[i] != 0) ++res.voxels_after;
       }
     }
-    const ndt::NewtonResult fine =
-        ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_);
-    x = fine.pose;
-    converged = fine.converged;
-    res.fine_iterations += fine.iterations;
-    res.points = fine.matched;
+    r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_, &lookup_cache_);
   }
-  res.pose = core::to_isometry(x);
-  return converged;
+  res.fine_iterations += r.iterations;
+  res.points = r.matched;
+  res.pose = core::to_isometry(r.pose);
+  return r.converged;
 }
 
 OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
@@ -144,16 +177,32 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   const double dt =
       have_prev_ ? static_cast<double>((scan.stamp - prev_stamp_).count()) * 1e-9 : 0.1;
   const double period = have_prev2_ ? prev_period_s_ : 0.1;
-  Eigen::Isometry3d motion =
+  const Eigen::Isometry3d motion =
       have_prev2_ ? scale_motion(prev_motion_, dt / period) : Eigen::Isometry3d::Identity();
-  deskew(scan, scale_motion(motion, period / std::max(dt, 1e-3)), period);
+  // In range, then downsampled: map_cell for the reference and Cv, scan_cell for matching.
+  raw_.clear();
+  const double min2 = options_.min_range * options_.min_range;
+  const double max2 = options_.max_range * options_.max_range;
+  for (const core::Point& p : scan.points) {
+    const Eigen::Vector3d v(p.x, p.y, p.z);
+    const double r2 = v.squaredNorm();
+    if (r2 < min2 || r2 > max2 || !v.allFinite()) continue;
+    raw_.push_back({v, static_cast<double>(p.time_ns) * 1e-9});
+  }
   res.raw_points = raw_.size();
-  scan_sampler_.run(raw_, test_);
+  map_sampler_.run(raw_, map_src_);
+  scan_sampler_.run(map_src_, scan_src_);
+  // The deskew motion spans one scan period; `motion` spans dt.
+  period_s_ = period;
+  const double to_period = period / std::max(dt, 1e-3);
+  deskew_all(scale_motion(motion, to_period));
   res.points = test_.size();
   if (!have_prev_) {
     res.flags |= kOdomFirstScan;
     res.pose = Eigen::Isometry3d::Identity();
     update_reference(res.pose);
+    newest_unskewed_ = options_.deskew;
+    newest_src_ = map_src_;
     prev_pose_ = res.pose;
     prev_stamp_ = scan.stamp;
     have_prev_ = true;
@@ -165,20 +214,28 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     res.pose = predicted;
   } else {
     core::Pose6 x0 = core::to_pose6(predicted);
-    if (!have_motion_prior_) x0 = bootstrap(x0);
-    Eigen::Isometry3d used_motion = motion;  // what the scan was deskewed with
+    if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
+    Eigen::Isometry3d used_motion = motion;  // what the scan was deskewed with (over dt)
     bool converged = false;
     for (int pass = 0; pass < 1 + options_.deskew_refinements; ++pass) {
       converged = match(x0, res);
-      // Deskew again with the motion just estimated if it differs from the one used.
       const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
-      const Eigen::Isometry3d diff = used_motion.inverse() * estimated;
-      const bool consistent =
-          diff.translation().norm() < 0.02 && Eigen::AngleAxisd(diff.linear()).angle() < 0.002;
-      if (!options_.deskew || consistent || pass == options_.deskew_refinements) break;
+      if (newest_unskewed_ && converged) {
+        // The first reference scan went in undistorted; now the motion is known, deskew it
+        // (same velocity) and match again.
+        newest_unskewed_ = false;
+        period_s_ = period;
+        deskew(newest_src_, scale_motion(estimated, to_period), scratch_);
+        replace_newest(scratch_, last_keyframe_pose_);
+      } else {
+        // Deskew again with the motion just estimated if it differs from the one used.
+        const Eigen::Isometry3d diff = used_motion.inverse() * estimated;
+        const bool consistent =
+            diff.translation().norm() < 0.02 && Eigen::AngleAxisd(diff.linear()).angle() < 0.002;
+        if (!options_.deskew || consistent || pass == options_.deskew_refinements) break;
+      }
       used_motion = estimated;
-      deskew(scan, scale_motion(estimated, period / std::max(dt, 1e-3)), period);
-      scan_sampler_.run(raw_, test_);
+      deskew_all(scale_motion(estimated, to_period));
       x0 = core::to_pose6(res.pose);
     }
     if (!converged) res.flags |= kOdomNotConverged;
@@ -187,6 +244,9 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
       res.pose = predicted;
       res.flags |= kOdomNotConverged;
     }
+    // The reference and Cm take the scan deskewed with the final estimate.
+    const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
+    if (options_.deskew) deskew_all(scale_motion(estimated, to_period));
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
     if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
   }
@@ -194,6 +254,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   prev_motion_ = prev_pose_.inverse() * res.pose;
   prev_period_s_ = std::max(dt, 1e-3);
   have_prev2_ = true;
+  newest_unskewed_ = false;
   update_reference(res.pose);
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;

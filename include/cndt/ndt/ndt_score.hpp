@@ -27,6 +27,10 @@ class PoseDerivatives {
   /// d2v/d(angle_a) d(angle_b) p for (a, b) = (0,0) (0,1) (0,2) (1,1) (1,2) (2,2).
   void second(const Eigen::Vector3d& p, std::array<Eigen::Vector3d, 6>& d2) const;
   [[nodiscard]] const Eigen::Matrix3d& rotation() const { return R_; }
+  /// dR/d(angle k), k = 0 (phi), 1 (theta), 2 (psi).
+  [[nodiscard]] const Eigen::Matrix3d& d1(int k) const { return d1_[static_cast<std::size_t>(k)]; }
+  /// Second derivatives in the order of second().
+  [[nodiscard]] const Eigen::Matrix3d& d2(int i) const { return d2_[static_cast<std::size_t>(i)]; }
 
  private:
   Eigen::Matrix3d R_;
@@ -34,6 +38,8 @@ class PoseDerivatives {
   std::array<Eigen::Matrix3d, 3> d1_;
   std::array<Eigen::Matrix3d, 6> d2_;
 };
+
+class LookupCache;
 
 struct ScoreResult {
   double score = 0.0;
@@ -50,10 +56,35 @@ using VoxelMask = const std::vector<std::uint8_t>*;
 /// that one and its six face neighbours, which widens the basin of convergence.
 enum class Neighbours { kOne = 1, kSeven = 7 };
 
+/// Remembers, per point index, the voxel key the point last fell in and the voxel indices found
+/// around it, so that repeated scoring (Newton iterations, passes over re-deskewed points, which
+/// move most points by less than a voxel) skips the hash lookups. Entries are checked against
+/// the point's current key, and the whole cache is dropped when the grid changes (its version)
+/// or another grid is scored, so a cache never gives a wrong voxel.
+class LookupCache {
+ public:
+  /// Room for `points` points; nothing is allocated afterwards. Larger sets are scored
+  /// without the cache.
+  explicit LookupCache(std::size_t points);
+  [[nodiscard]] std::size_t capacity() const { return capacity_; }
+
+ private:
+  friend ScoreResult ndt_score(const VoxelGrid&, std::span<const Eigen::Vector3d>,
+                               const core::Pose6&, bool, VoxelMask, Neighbours, LookupCache*);
+  void reset(std::size_t points);
+  std::size_t capacity_;
+  const VoxelGrid* grid_ = nullptr;
+  std::uint64_t version_ = 0;
+  int lookups_ = 0;
+  std::vector<VoxelKey> keys_;         // per point; x = INT32_MIN: not looked up yet
+  std::vector<std::int32_t> indices_;  // 7 per point: the voxels around keys_[i], -1 none
+};
+
 /// S(x) for `points` (sensor frame) against `grid`; with `derivatives`, also its gradient and
-/// Hessian. Each point adds one term per Gaussian of the voxels `neighbours` selects.
+/// Hessian. Each point adds one term per Gaussian of the voxels `neighbours` selects. A cache
+/// saves voxel lookups across calls on the same grid.
 ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                       const core::Pose6& x, bool derivatives, VoxelMask mask = nullptr,
-                      Neighbours neighbours = Neighbours::kOne);
+                      Neighbours neighbours = Neighbours::kOne, LookupCache* cache = nullptr);
 
 }  // namespace cndt::ndt

@@ -27,9 +27,9 @@ struct NewtonResult {
 };
 
 /// Minimises S(x) from `initial`. Never throws; a pose where no point matches returns
-/// converged = false with the initial pose.
+/// converged = false with the initial pose. A cache saves voxel lookups between iterations.
 NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                           const core::Pose6& initial, const NewtonOptions& options,
-                          VoxelMask mask = nullptr);
+                          VoxelMask mask = nullptr, LookupCache* cache = nullptr);
 
 }  // namespace cndt::ndt

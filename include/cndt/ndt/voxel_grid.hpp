@@ -1,6 +1,6 @@
 // NDT voxel grid (paper section 2.1, eqs 1-4): cubic voxels of edge L holding running sums of
-// their points, so that points can be added incrementally. Fixed capacity, open addressing,
-// allocated once; inserting never allocates.
+// their points, so that points can be added and removed incrementally. Fixed capacity, open
+// addressing, allocated once; adding, removing, finalizing and compacting never allocate.
 #pragma once
 
 #include <Eigen/Core>
@@ -15,16 +15,20 @@ struct VoxelKey {
   bool operator==(const VoxelKey&) const = default;
 };
 
-/// One voxel: running sums (eqs 1-3) and the Gaussian derived from them (eq 4).
+/// One voxel: running sums (eqs 1-3) and the Gaussian derived from them (eq 4). The sums are
+/// kept relative to the voxel's corner (key x L), so that they stay exact far from the origin
+/// and after many additions and removals.
 struct Voxel {
   VoxelKey key;
-  std::uint32_t count = 0;                              ///< N_j
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();        ///< m_j = sum p_i
-  Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();  ///< S_j = sum p_i p_i^T
-  // Derived by VoxelGrid::finalize():
+  std::uint32_t count = 0;  ///< N_j
+  // Derived by VoxelGrid::finalize() (the fields scoring reads come first):
   bool has_gaussian = false;  ///< N_j >= min_points
+  bool dirty = false;         ///< changed since the last finalize()
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d inv_cov = Eigen::Matrix3d::Zero();
+  // Running sums, corner-relative: m_j = sum (p_i - c), S_j = sum (p_i - c)(p_i - c)^T.
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
 };
 
 struct VoxelGridOptions {
@@ -43,11 +47,19 @@ class VoxelGrid {
 
   /// Adds one point (metres, grid frame). False when a new voxel would exceed the capacity.
   bool add(const Eigen::Vector3d& p) noexcept;
-  /// Derives mean and inverse covariance for every voxel with enough points:
-  /// mu = m / N; Sigma = S / N - mu mu^T (population covariance, divisor N), with every
-  /// eigenvalue below eigen_floor x the largest raised to that value.
+  /// Takes back a point added before (the same coordinates). A voxel left empty stays in the
+  /// table, without a Gaussian, until compact(). False when no voxel holds `p`.
+  bool remove(const Eigen::Vector3d& p) noexcept;
+  /// Derives mean and inverse covariance for every voxel changed since the last call that has
+  /// enough points: mu = m / N; Sigma = S / N - mu mu^T (population covariance, divisor N), with
+  /// every eigenvalue below eigen_floor x the largest raised to that value.
   void finalize() noexcept;
   void clear() noexcept;
+  /// Drops the empty voxels left by remove() and rebuilds the table (indices change). Changes
+  /// not yet finalized are finalized first.
+  void compact() noexcept;
+  /// Voxels left empty by remove(), still occupying a slot.
+  [[nodiscard]] std::size_t empty_voxels() const noexcept { return empty_; }
 
   [[nodiscard]] VoxelKey key_of(const Eigen::Vector3d& p) const noexcept;
   /// The voxel holding `p`, or nullptr.
@@ -63,16 +75,25 @@ class VoxelGrid {
   [[nodiscard]] std::size_t size() const noexcept { return voxels_.size(); }
   [[nodiscard]] std::uint64_t refused_points() const noexcept { return refused_; }
   [[nodiscard]] const VoxelGridOptions& options() const noexcept { return options_; }
+  /// Changes whenever a lookup could give another index (a new voxel, compact, clear): voxel
+  /// indices cached at one version stay right while it holds. Unique across grids.
+  [[nodiscard]] std::uint64_t version() const noexcept { return version_; }
 
  private:
   [[nodiscard]] std::size_t slot_of(const VoxelKey& k) const noexcept;
+  [[nodiscard]] Eigen::Vector3d corner(const VoxelKey& k) const noexcept;
+  void mark_dirty(Voxel& v, std::size_t index) noexcept;
+  void derive(Voxel& v) const noexcept;
 
   VoxelGridOptions options_;
   double inv_size_;
-  std::vector<Voxel> voxels_;        // capacity reserved once
-  std::vector<std::int32_t> table_;  // open addressing: index into voxels_, -1 empty
+  std::vector<Voxel> voxels_;         // capacity reserved once
+  std::vector<std::int32_t> table_;   // open addressing: index into voxels_, -1 empty
+  std::vector<std::uint32_t> dirty_;  // voxels changed since the last finalize()
   std::size_t mask_;
+  std::size_t empty_ = 0;
   std::uint64_t refused_ = 0;
+  std::uint64_t version_ = 0;
 };
 
 }  // namespace cndt::ndt

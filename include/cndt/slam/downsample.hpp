@@ -8,20 +8,31 @@
 
 namespace cndt::slam {
 
+/// A point with its firing time, seconds after the scan's stamp.
+struct TimedPoint {
+  Eigen::Vector3d p;
+  double t = 0.0;
+};
+
 class Downsampler {
  public:
   /// `cell` metres; at most `capacity` output points (further cells are dropped and counted).
   Downsampler(double cell, std::size_t capacity);
   /// Replaces `out` with the centroids of `in`'s occupied cells, in first-seen order.
   void run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Vector3d>& out);
+  /// The same for timed points: each centroid carries the mean firing time of its points.
+  void run(std::span<const TimedPoint> in, std::vector<TimedPoint>& out);
   [[nodiscard]] std::size_t dropped() const { return dropped_; }
 
  private:
   struct Cell {
     std::int64_t key;
     Eigen::Vector3d sum;
+    double time_sum;
     std::uint32_t count;
   };
+  void bin(const Eigen::Vector3d& p, double t);
+  void reset();
   double inv_cell_;
   std::vector<Cell> cells_;
   std::vector<std::int32_t> table_;

@@ -7,7 +7,7 @@
 #include <Eigen/Geometry>
 #include <chrono>
 #include <cstdint>
-#include <deque>
+#include <span>
 #include <vector>
 
 #include "cndt/core/scan.hpp"
@@ -26,11 +26,16 @@ enum class Reference { kPreviousScan, kLocalMap };
 struct OdometryOptions {
   OdometryMode mode = OdometryMode::kConsensus;
   Reference reference = Reference::kLocalMap;
-  std::size_t local_map_scans = 10;           ///< scans merged into the local map
-  double voxel_size = 0.5;                    ///< L of the reference NDT, m (paper: 0.5)
-  double scan_cell = 0.3;                     ///< downsampling of the scan being matched, m
-  double map_cell = 0.05;                     ///< downsampling of scans added to the reference, m
-  double eta = 0.7;                           ///< Cv threshold (paper: 0.7)
+  /// Scans the local map holds. A scan enters it once the sensor has moved map_min_translation
+  /// or turned map_min_rotation since the last one that did (always with kPreviousScan), so a
+  /// slow or stopped vehicle keeps a map spread over distance.
+  std::size_t local_map_scans = 10;
+  double map_min_translation = 0.3;  ///< m
+  double map_min_rotation = 0.035;   ///< rad (2 deg)
+  double voxel_size = 0.5;           ///< L of the reference NDT, m (paper: 0.5)
+  double scan_cell = 0.5;            ///< downsampling of the scan being matched, m
+  double map_cell = 0.1;  ///< downsampling of scans added to the reference and used for Cv, m
+  double eta = 0.7;       ///< Cv threshold (paper: 0.7)
   double min_range = 1.0, max_range = 100.0;  ///< m; nearer points are the vehicle itself
   bool deskew = true;                         ///< undistort with the constant-velocity prediction
   int deskew_refinements = 2;  ///< re-deskew with the estimated motion and match again
@@ -38,11 +43,22 @@ struct OdometryOptions {
   std::size_t max_map_voxels = 400'000;
   std::size_t min_points = 200;  ///< fewer matched points: the scan is not matched
   bool drop_ring_arcs = false;   ///< reference voxels holding a single ring arc get no Gaussian
-  /// Without a motion prior (the first scans, or after a failed match) the scan is first matched
-  /// on these coarser grids, widening the basin of convergence (ground rings that move with the
-  /// sensor otherwise hold a match near zero motion).
-  std::vector<double> bootstrap_voxel_sizes = {2.0, 1.0};
-  ndt::NewtonOptions coarse{.max_iterations = 15};
+  /// Coarser grids of the same reference the scan is matched on first, coarsest first. Their
+  /// Gaussians are blurred (eigenvalues floored at pyramid_eigen_floor x the largest) and voxels
+  /// holding a single ring arc get none, so they pull from much farther than the fine grid,
+  /// whose ground planes have no restoring force beyond a few centimetres (and whose ring arcs
+  /// hold a match near zero motion). Always used without a motion prior (the first scans, or
+  /// after a failed match); on every scan with pyramid_every_scan.
+  std::vector<double> pyramid_voxel_sizes = {2.0, 1.0};
+  double pyramid_eigen_floor = 0.05;
+  bool pyramid_every_scan = true;
+  /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
+  ndt::NewtonOptions pyramid{.max_iterations = 10,
+                             .translation_eps = 5e-3,
+                             .rotation_eps = 1e-3,
+                             .score_eps = 1e-5,
+                             .neighbours = ndt::Neighbours::kOne};
+  ndt::NewtonOptions coarse{.max_iterations = 15, .translation_eps = 3e-3, .rotation_eps = 5e-4};
   ndt::NewtonOptions fine{.max_iterations = 15};
   ndt::NewtonOptions naive{.max_iterations = 30};
 };
@@ -75,22 +91,45 @@ class ConsensusOdometry {
   [[nodiscard]] const OdometryOptions& options() const { return options_; }
 
  private:
-  void deskew(const core::Scan& scan, const Eigen::Isometry3d& motion, double scan_period_s);
-  // Adds the current scan, placed at `pose`, to the reference and rebuilds its grid.
+  // Deskews `in` (sensor frame, timed) with `motion` over one scan period into `out`: every
+  // point moved to where the sensor was at the scan stamp.
+  void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
+              std::vector<Eigen::Vector3d>& out) const;
+  void deskew_all(const Eigen::Isometry3d& motion);
+  // Adds the current scan (cv_points_, placed at `pose`) to the reference when it is due.
   void update_reference(const Eigen::Isometry3d& pose);
-  core::Pose6 bootstrap(const core::Pose6& x0);
+  // Replaces the newest reference scan by `points` placed at `pose`.
+  void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
+  core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
+  void add_to_grids(const std::vector<Eigen::Vector3d>& points);
+  void remove_from_grids(const std::vector<Eigen::Vector3d>& points);
+  void finalize_grids();
   // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res.
   bool match(const core::Pose6& x0, OdometryResult& res);
   double consensus_at(const core::Pose6& x, std::vector<double>& cv);
 
   OdometryOptions options_;
   ndt::VoxelGrid grid_;
-  std::vector<ndt::VoxelGrid> bootstrap_grids_;
+  std::vector<ndt::VoxelGrid> pyramid_;  // coarse grids of the reference
   bool have_motion_prior_ = false;
   ndt::ChiSquareTable chi2_;
-  Downsampler scan_sampler_, map_sampler_;
-  std::vector<Eigen::Vector3d> raw_, test_, map_points_;
-  std::deque<std::vector<Eigen::Vector3d>> history_;  // reference scans, odometry frame
+  ndt::LookupCache lookup_cache_;
+  Downsampler map_sampler_, scan_sampler_;
+  std::vector<TimedPoint> raw_;             // in range, sensor frame
+  std::vector<TimedPoint> map_src_;         // raw_ at map_cell
+  std::vector<TimedPoint> scan_src_;        // map_src_ at scan_cell
+  std::vector<Eigen::Vector3d> test_;       // scan_src_ deskewed: matched
+  std::vector<Eigen::Vector3d> cv_points_;  // map_src_ deskewed: Cv, and added to the reference
+  double period_s_ = 0.1;                   // duration the deskew motion spans
+  // Reference scans in the odometry frame: a ring of local_map_scans slots, allocated once.
+  std::vector<std::vector<Eigen::Vector3d>> history_;
+  std::size_t history_head_ = 0, history_size_ = 0;
+  Eigen::Isometry3d last_keyframe_pose_ = Eigen::Isometry3d::Identity();
+  // The newest reference scan was added without a motion estimate (first scan): kept in the
+  // sensor frame so it can be deskewed once the motion is known.
+  bool newest_unskewed_ = false;
+  std::vector<TimedPoint> newest_src_;
+  std::vector<Eigen::Vector3d> scratch_;
   std::vector<std::uint8_t> mask_;
   std::vector<double> cv_;
   ndt::VoxelResiduals residuals_;

@@ -60,6 +60,50 @@ TEST(VoxelGrid, NeverGrowsPastItsCapacity) {
   EXPECT_EQ(g.refused_points(), 7u);
 }
 
+// A sliding reference: points added and later removed must leave exactly the grid the remaining
+// points alone give, far from the origin too (the sums are kept relative to each voxel).
+TEST(VoxelGrid, RemovingPointsLeavesTheGridOfTheRest) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 3.0);
+  const Eigen::Vector3d far(4000.25, -2500.75, 30.0);
+  std::vector<Eigen::Vector3d> a, b;
+  for (int i = 0; i < 3000; ++i) a.push_back(far + Eigen::Vector3d(u(rng), u(rng), 0.2 * u(rng)));
+  for (int i = 0; i < 3000; ++i) b.push_back(far + Eigen::Vector3d(u(rng), 0.3 * u(rng), u(rng)));
+  VoxelGrid sliding({0.5, 1000, 5, 0.001});
+  for (const auto& p : a) ASSERT_TRUE(sliding.add(p));
+  for (const auto& p : b) ASSERT_TRUE(sliding.add(p));
+  sliding.finalize();
+  const std::uint64_t before = sliding.version();
+  for (const auto& p : a) ASSERT_TRUE(sliding.remove(p));
+  EXPECT_FALSE(sliding.remove(far + Eigen::Vector3d(-7, -7, -7)));  // never added
+  sliding.finalize();
+  VoxelGrid fresh({0.5, 1000, 5, 0.001});
+  for (const auto& p : b) fresh.add(p);
+  fresh.finalize();
+  auto compare = [&] {
+    std::size_t gaussians = 0;
+    for (const Voxel& v : fresh.voxels()) {
+      const Voxel* w = sliding.find(v.key);
+      ASSERT_NE(w, nullptr);
+      ASSERT_EQ(w->count, v.count);
+      ASSERT_EQ(w->has_gaussian, v.has_gaussian);
+      if (!v.has_gaussian) continue;
+      ++gaussians;
+      EXPECT_LT((w->mean - v.mean).norm(), 1e-9);
+      EXPECT_LT((w->inv_cov - v.inv_cov).norm(), 1e-6 * v.inv_cov.norm());
+    }
+    EXPECT_GT(gaussians, 10u);
+  };
+  compare();
+  EXPECT_GT(sliding.empty_voxels(), 0u);  // a's voxels that b does not share
+  EXPECT_EQ(sliding.size(), fresh.size() + sliding.empty_voxels());
+  sliding.compact();
+  EXPECT_EQ(sliding.size(), fresh.size());
+  EXPECT_EQ(sliding.empty_voxels(), 0u);
+  EXPECT_NE(sliding.version(), before);  // indices changed: cached lookups are void
+  compare();
+}
+
 // Clusters at the centres of 4 m voxels, so that small pose changes never move a point into
 // another voxel and S is smooth where the finite differences are taken.
 struct Scene {
@@ -134,6 +178,32 @@ TEST_P(Derivatives, AnalyticGradientAndHessianEqualFiniteDifferences) {
 }
 
 INSTANTIATE_TEST_SUITE_P(RandomPoses, Derivatives, ::testing::Range(1u, 11u));
+
+// Scoring with a lookup cache gives what scoring without one gives, across poses, across a
+// change of the grid and across grids.
+TEST(LookupCache, GivesTheSameScoresAsFreshLookups) {
+  Scene s = random_scene(11);
+  Scene other = random_scene(12);
+  LookupCache cache(s.test.size());
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, 0.3);
+  for (int round = 0; round < 30; ++round) {
+    Pose6 x;
+    for (int k = 0; k < 6; ++k) x[k] = n(rng) * (k < 3 ? 2.0 : 0.1);
+    const VoxelGrid& g = round % 3 == 2 ? other.grid : s.grid;
+    for (Neighbours nb : {Neighbours::kOne, Neighbours::kSeven}) {
+      const ScoreResult plain = ndt_score(g, s.test, x, true, nullptr, nb);
+      const ScoreResult cached = ndt_score(g, s.test, x, true, nullptr, nb, &cache);
+      EXPECT_EQ(plain.matched, cached.matched);
+      EXPECT_DOUBLE_EQ(plain.score, cached.score);
+      EXPECT_LT((plain.hessian - cached.hessian).norm(), 1e-12 * (1 + plain.hessian.norm()));
+    }
+    if (round == 10) {  // the grid grows: a lookup that found nothing may now find a voxel
+      for (const auto& p : s.test) s.grid.add(p + Eigen::Vector3d(0.5, 0.5, 0.5));
+      s.grid.finalize();
+    }
+  }
+}
 
 TEST(Newton, RecoversAKnownMotionOfAStructuredScene) {
   // Ground, two walls and a box, sampled densely; the test scan sees it from a moved sensor.

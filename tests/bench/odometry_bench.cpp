@@ -1,0 +1,91 @@
+// Consensus-NDT odometry per VLP-16 scan (600 rpm, ~28.8k returns) on a simulated street drive,
+// and consensus against naive mode side by side on the same scans in one run.
+// Run: build/release/tests/bench/odometry_bench
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <vector>
+
+#include "cndt/sim/lidar_sim.hpp"
+#include "cndt/slam/odometry.hpp"
+#include "cndt/vlp16/driver.hpp"
+
+namespace {
+
+constexpr double kSeconds = 10.0;
+
+const std::vector<cndt::core::Scan>& street_scans() {
+  static const std::vector<cndt::core::Scan> scans = [] {
+    const cndt::sim::Scene scene =
+        cndt::sim::build_scene(cndt::sim::SceneKind::kStreet, kSeconds, 4, 1);
+    cndt::sim::LidarSimOptions o;
+    o.duration_s = kSeconds;
+    o.seed = 1;
+    cndt::sim::LidarSimulator sim(scene, o);
+    cndt::vlp16::Driver driver({});
+    std::vector<cndt::core::Scan> out;
+    auto sink = [&](cndt::core::Scan& s) { out.push_back(s); };
+    cndt::sim::SimPacket p;
+    while (sim.next(p)) {
+      driver.on_data(cndt::core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns),
+                     sink);
+    }
+    driver.finish(sink);
+    return out;
+  }();
+  return scans;
+}
+
+struct Run {
+  std::vector<double> ms;
+  double total_ms = 0.0;
+  double iterations = 0.0;  // per matched scan
+};
+
+Run run_sequence(cndt::slam::OdometryMode mode) {
+  cndt::slam::OdometryOptions o;
+  o.mode = mode;
+  cndt::slam::ConsensusOdometry odometry(o);
+  Run r;
+  long iterations = 0;
+  for (const auto& scan : street_scans()) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = odometry.process(scan);
+    const auto t1 = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(res.pose);
+    r.ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    iterations += res.coarse_iterations + res.fine_iterations;
+  }
+  for (double m : r.ms) r.total_ms += m;
+  r.iterations = static_cast<double>(iterations) / static_cast<double>(r.ms.size() - 1);
+  return r;
+}
+
+double percentile(std::vector<double> v, double p) {
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())))];
+}
+
+// One iteration = the whole drive in consensus mode, then in naive mode, each with a fresh
+// odometry. Counters: per-scan milliseconds (median, p99) and iterations per scan of both modes,
+// and the ratio of their total times.
+void ConsensusVersusNaive(benchmark::State& state) {
+  street_scans();  // simulated outside the timing
+  Run c, n;
+  for (auto _ : state) {
+    c = run_sequence(cndt::slam::OdometryMode::kConsensus);
+    n = run_sequence(cndt::slam::OdometryMode::kNaive);
+  }
+  state.counters["scans"] = static_cast<double>(c.ms.size());
+  state.counters["consensus_ms_p50"] = percentile(c.ms, 0.5);
+  state.counters["consensus_ms_p99"] = percentile(c.ms, 0.99);
+  state.counters["consensus_iterations"] = c.iterations;
+  state.counters["naive_ms_p50"] = percentile(n.ms, 0.5);
+  state.counters["naive_ms_p99"] = percentile(n.ms, 0.99);
+  state.counters["naive_iterations"] = n.iterations;
+  state.counters["time_ratio"] = c.total_ms / n.total_ms;
+}
+BENCHMARK(ConsensusVersusNaive)->Iterations(1)->Unit(benchmark::kSecond);
+
+}  // namespace
