@@ -4,11 +4,13 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 
 #include "cndt/cli/alloc_counter.hpp"
+#include "cndt/cli/cloud_io.hpp"
 #include "cndt/cli/commands.hpp"
 #include "cndt/slam/odometry.hpp"
 
@@ -72,7 +74,14 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
       "qx qy qz qw: the sensor pose at each scan start), scans.csv (per scan: time, "
       "Cm, iterations, voxels before/after the Cv cut, points, milliseconds, flags) "
       "and summary.json");
-  cmd->add_option("capture", a.capture, "pcap or pcapng file")->required();
+  cmd->add_option("capture", a.capture,
+                  "pcap or pcapng file, or a folder of clouds (KITTI .bin or PCD, in name "
+                  "order; scan times from its times.txt if present, else --scan-period apart)")
+      ->required();
+  cmd->add_option("--scan-period", a.scan_period_s,
+                  "Seconds between scans of a cloud folder without times.txt")
+      ->capture_default_str()
+      ->check(CLI::Range(0.001, 10.0));
   cmd->add_option("--out", a.out_dir, "Output folder (created if missing)")->required();
   cmd->add_option("--mode", a.mode,
                   "consensus (coarse match, Cv cut at eta, fine match) or naive (one match over "
@@ -112,12 +121,32 @@ int run_replay(const ReplayArgs& a) {
   ctx.csv << "time,cm,coarse_iterations,fine_iterations,voxels_before,voxels_after,points,"
              "raw_points,odometry_ms,flags\n";
   const auto wall0 = std::chrono::steady_clock::now();
-  auto report = read_capture(a.capture, options.value(), on_scan, &ctx);
-  if (!report) return fail(report.error());
+  CaptureReport r;
+  std::error_code ec;
+  if (std::filesystem::is_directory(a.capture, ec)) {
+    // A folder of clouds (KITTI .bin or PCD): one scan per file, no firing times (no deskew).
+    auto folder = list_cloud_folder(a.capture, a.scan_period_s);
+    if (!folder) return fail(folder.error());
+    core::Scan scan(oo.max_scan_points);
+    const CloudFolder& f = folder.value();
+    for (std::size_t i = 0; i < f.files.size() && !ctx.done; ++i) {
+      if (auto err = read_cloud(f.files[i], scan)) return fail(*err);
+      if (scan.points_dropped > 0) {
+        spdlog::warn("'{}': {} points beyond the capacity of {} dropped", f.files[i],
+                     scan.points_dropped, oo.max_scan_points);
+      }
+      scan.stamp = std::chrono::nanoseconds(std::llround(f.times_s[i] * 1e9));
+      scan.sequence = i;
+      on_scan(scan, &ctx);
+    }
+  } else {
+    auto report = read_capture(a.capture, options.value(), on_scan, &ctx);
+    if (!report) return fail(report.error());
+    r = report.value();
+    warn_if_cut_short(r);
+  }
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-  const CaptureReport& r = report.value();
-  warn_if_cut_short(r);
   ctx.trajectory.close();
   ctx.csv.close();
   if (!ctx.trajectory || !ctx.csv) {

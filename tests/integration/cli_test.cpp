@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -139,6 +140,47 @@ TEST(CliEval, BadTrajectoryFilesNameFileAndLine) {
   EXPECT_NE(r.output.find("bad.tum:2"), std::string::npos) << r.output;
   r = run("eval --gt " + dir.file("missing.tum") + " --est " + dir.file("gt.tum"));
   EXPECT_EQ(r.code, 66) << r.output;
+}
+
+}  // namespace
+
+namespace {
+
+// Scan folders as replay input: what `cndt decode` writes (PCD with times.txt) replays, and a
+// cut PCD or an empty folder is one clear error naming it.
+TEST(CliReplay, CloudFoldersReplayAndBadCloudsAreNamed) {
+  cndt::test::TempDir dir;
+  CliRun r = run("sim --scene street --duration 1 --out " + dir.file("s"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("decode " + dir.file("s/capture.pcap") + " --out " + dir.file("d") + " --format pcd");
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("replay " + dir.file("d") + " --out " + dir.file("r") + " --max-scans 6");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream tum(dir.file("r/trajectory.tum"));
+  std::string first;
+  std::getline(tum, first);
+  std::ifstream times(dir.file("d/times.txt"));
+  std::string line, file, stamp;
+  while (std::getline(times, line) && line[0] == '#') {
+  }
+  std::istringstream(line) >> file >> stamp;
+  EXPECT_EQ(first.substr(0, 10), stamp.substr(0, 10)) << first << " vs " << line;
+  int poses = 1;
+  for (std::string l; std::getline(tum, l);) ++poses;
+  EXPECT_EQ(poses, 6);
+
+  // Cut the third cloud in the middle of its points.
+  std::filesystem::resize_file(dir.file("d/000002.pcd"), 2000);
+  r = run("replay " + dir.file("d") + " --out " + dir.file("r2"));
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_EQ(error_lines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("000002.pcd"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("ends at point"), std::string::npos) << r.output;
+
+  std::filesystem::create_directories(dir.file("empty"));
+  r = run("replay " + dir.file("empty") + " --out " + dir.file("r3"));
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("no .bin or .pcd"), std::string::npos) << r.output;
 }
 
 }  // namespace

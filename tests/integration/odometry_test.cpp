@@ -2,10 +2,17 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "cndt/cli/cloud_io.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/sweep.hpp"
 #include "cndt/slam/trajectory_eval.hpp"
 #include "cndt/vlp16/driver.hpp"
+#include "shared_data.hpp"
+#include "temp_dir.hpp"
 
 namespace cndt::slam {
 namespace {
@@ -111,6 +118,58 @@ TEST(Figure9, CmFallsWithThePerturbation) {
     EXPECT_LE(rho, -0.9);
     EXPECT_GT(cms.front(), cms.back());
   }
+}
+
+// A real drive: 100 consecutive KITTI HDL-64E scans (PCD, about 120k points each, no firing
+// times, no ground truth). The trajectory must be continuous and its length within 10 % of the
+// rough 2-D ICP estimate stored beside the scans.
+TEST(KittiDrive, ContinuousAndAsLongAsTheRoughEstimate) {
+  CNDT_REQUIRE_SHARED(archive, "kitti-hdl64-udacity-drive/data_2_frames_000-099.tar.xz");
+  CNDT_REQUIRE_SHARED(rough,
+                      "kitti-hdl64-udacity-drive/rough_2d_icp_estimate_NOT_GROUND_TRUTH.txt");
+  const test::TempDir dir;
+  const std::string cmd = "tar xJf '" + archive + "' -C '" + dir.path().string() + "'";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  auto folder = cli::list_cloud_folder(dir.file("data_2_frames_000-099"), 0.1);
+  ASSERT_TRUE(folder) << folder.error().message;
+  ASSERT_EQ(folder.value().files.size(), 100u);
+  // The rough estimate's length over the same 99 steps (section data_2, frames 1-99).
+  double rough_length = 0.0;
+  {
+    std::ifstream in(rough);
+    std::string line;
+    bool data2 = false;
+    int steps = 0;
+    while (std::getline(in, line)) {
+      if (line.rfind("## data_2", 0) == 0) data2 = true;
+      if (!data2 || line.empty() || line[0] == '#' || steps == 99) continue;
+      double dx = 0, dy = 0;
+      ASSERT_EQ(std::sscanf(line.c_str(), "%*s dx=%lf dy=%lf", &dx, &dy), 2) << line;
+      rough_length += std::hypot(dx, dy);
+      ++steps;
+    }
+    ASSERT_EQ(steps, 99);
+  }
+  ConsensusOdometry odometry({});
+  core::Scan scan(150'000);
+  std::vector<Eigen::Vector3d> positions;
+  for (std::size_t i = 0; i < folder.value().files.size(); ++i) {
+    ASSERT_FALSE(cli::read_cloud(folder.value().files[i], scan).has_value());
+    scan.stamp = std::chrono::nanoseconds(static_cast<std::int64_t>(i) * 100'000'000);
+    const OdometryResult r = odometry.process(scan);
+    ASSERT_TRUE(r.pose.matrix().allFinite());
+    positions.push_back(r.pose.translation());
+  }
+  double length = 0.0, longest = 0.0;
+  for (std::size_t i = 1; i < positions.size(); ++i) {
+    const double step = (positions[i] - positions[i - 1]).norm();
+    length += step;
+    longest = std::max(longest, step);
+  }
+  std::printf("length %.2f m (rough estimate %.2f m), longest step %.3f m\n", length, rough_length,
+              longest);
+  EXPECT_NEAR(length, rough_length, 0.1 * rough_length);
+  EXPECT_LT(longest, 1.0);  // 3-6 m/s at 10 Hz: no jump
 }
 
 TEST(Spearman, RanksWithTies) {

@@ -75,6 +75,7 @@ struct ReplayArgs {
   std::string mode = "consensus";
   std::string reference = "local-map";
   std::size_t max_scans = 0;
+  double scan_period_s = 0.1;
   CaptureArgs capture_args;
 };
 void register_replay(CLI::App& app, ReplayArgs& args);
