@@ -69,18 +69,18 @@ void ConsensusOdometry::remove_from_grids(const std::vector<Eigen::Vector3d>& po
 }
 
 void ConsensusOdometry::finalize_grids() {
-  grid_.finalize();
-  if (grid_.refused_points() > 0 || grid_.empty_voxels() * 4 > grid_.size()) grid_.compact();
-  for (ndt::VoxelGrid& g : pyramid_) {
+  auto finalize = [](ndt::VoxelGrid& g) {
     g.finalize();
     if (g.refused_points() > 0 || g.empty_voxels() * 4 > g.size()) g.compact();
-  }
+  };
+  finalize(grid_);
+  for (ndt::VoxelGrid& g : pyramid_) finalize(g);
 }
 
 void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
-                               std::vector<Eigen::Vector3d>& out) const {
+                               double period_s, std::vector<Eigen::Vector3d>& out) const {
   out.clear();
-  if (!options_.deskew || period_s_ <= 0.0) {
+  if (!options_.deskew || period_s <= 0.0) {
     for (const TimedPoint& p : in) out.push_back(p.p);
     return;
   }
@@ -90,7 +90,7 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   const Eigen::Vector3d k = aa.axis();
   const double angle = aa.angle();
   const Eigen::Vector3d t = motion.translation();
-  const double inv_period = 1.0 / period_s_;
+  const double inv_period = 1.0 / period_s;
   for (const TimedPoint& p : in) {
     const double a = p.t * inv_period;
     const double s = std::sin(a * angle), c1 = 1.0 - std::cos(a * angle);
@@ -99,9 +99,9 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   }
 }
 
-void ConsensusOdometry::deskew_all(const Eigen::Isometry3d& motion) {
-  deskew(scan_src_, motion, test_);
-  deskew(map_src_, motion, cv_points_);
+void ConsensusOdometry::deskew_all(const Eigen::Isometry3d& motion, double period_s) {
+  deskew(scan_src_, motion, period_s, test_);
+  deskew(map_src_, motion, period_s, cv_points_);
 }
 
 double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>& cv) {
@@ -193,9 +193,8 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   map_sampler_.run(raw_, map_src_);
   scan_sampler_.run(map_src_, scan_src_);
   // The deskew motion spans one scan period; `motion` spans dt.
-  period_s_ = period;
   const double to_period = period / std::max(dt, 1e-3);
-  deskew_all(scale_motion(motion, to_period));
+  deskew_all(scale_motion(motion, to_period), period);
   res.points = test_.size();
   if (!have_prev_) {
     res.flags |= kOdomFirstScan;
@@ -224,8 +223,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
         // The first reference scan went in undistorted; now the motion is known, deskew it
         // (same velocity) and match again.
         newest_unskewed_ = false;
-        period_s_ = period;
-        deskew(newest_src_, scale_motion(estimated, to_period), scratch_);
+        deskew(newest_src_, scale_motion(estimated, to_period), period, scratch_);
         replace_newest(scratch_, last_keyframe_pose_);
       } else {
         // Deskew again with the motion just estimated if it differs from the one used.
@@ -235,7 +233,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
         if (!options_.deskew || consistent || pass == options_.deskew_refinements) break;
       }
       used_motion = estimated;
-      deskew_all(scale_motion(estimated, to_period));
+      deskew_all(scale_motion(estimated, to_period), period);
       x0 = core::to_pose6(res.pose);
     }
     if (!converged) res.flags |= kOdomNotConverged;
@@ -246,7 +244,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     }
     // The reference and Cm take the scan deskewed with the final estimate.
     const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
-    if (options_.deskew) deskew_all(scale_motion(estimated, to_period));
+    if (options_.deskew) deskew_all(scale_motion(estimated, to_period), period);
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
     if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
   }

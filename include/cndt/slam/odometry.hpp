@@ -91,11 +91,11 @@ class ConsensusOdometry {
   [[nodiscard]] const OdometryOptions& options() const { return options_; }
 
  private:
-  // Deskews `in` (sensor frame, timed) with `motion` over one scan period into `out`: every
-  // point moved to where the sensor was at the scan stamp.
-  void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
+  // Deskews `in` (sensor frame, timed) with `motion` over `period_s` into `out`: every point
+  // moved to where the sensor was at the scan stamp.
+  void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion, double period_s,
               std::vector<Eigen::Vector3d>& out) const;
-  void deskew_all(const Eigen::Isometry3d& motion);
+  void deskew_all(const Eigen::Isometry3d& motion, double period_s);
   // Adds the current scan (cv_points_, placed at `pose`) to the reference when it is due.
   void update_reference(const Eigen::Isometry3d& pose);
   // Replaces the newest reference scan by `points` placed at `pose`.
@@ -120,7 +120,6 @@ class ConsensusOdometry {
   std::vector<TimedPoint> scan_src_;        // map_src_ at scan_cell
   std::vector<Eigen::Vector3d> test_;       // scan_src_ deskewed: matched
   std::vector<Eigen::Vector3d> cv_points_;  // map_src_ deskewed: Cv, and added to the reference
-  double period_s_ = 0.1;                   // duration the deskew motion spans
   // Reference scans in the odometry frame: a ring of local_map_scans slots, allocated once.
   std::vector<std::vector<Eigen::Vector3d>> history_;
   std::size_t history_head_ = 0, history_size_ = 0;
