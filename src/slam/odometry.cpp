@@ -1,6 +1,7 @@
 #include "cndt/slam/odometry.hpp"
 
 #include <cmath>
+#include <optional>
 
 namespace cndt::slam {
 namespace {
@@ -44,6 +45,36 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
     pyramid_.emplace_back(
         ndt::VoxelGridOptions{size, o.max_map_voxels / 4, 5, o.pyramid_eigen_floor, true});
   }
+}
+
+core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0) {
+  // Without a velocity the coarse objective can be too flat near x0 for Newton to leave it (a
+  // vehicle already moving when the first scans arrive). Score a horizontal grid of offsets on
+  // the coarsest grid and start from the best.
+  if (pyramid_.empty() || options_.start_search_radius <= 0.0) return x0;
+  const ndt::VoxelGrid& g = pyramid_.front();
+  const double step = 0.25 * g.options().voxel_size;
+  const int n = static_cast<int>(std::floor(options_.start_search_radius / step));
+  core::Pose6 best = x0;
+  double best_score =
+      ndt::ndt_score(g, test_, x0, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
+          .score;
+  for (int i = -n; i <= n; ++i) {
+    for (int j = -n; j <= n; ++j) {
+      if (i == 0 && j == 0) continue;
+      core::Pose6 x = x0;
+      x(0) += i * step;
+      x(1) += j * step;
+      const double s =
+          ndt::ndt_score(g, test_, x, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
+              .score;
+      if (s < best_score) {
+        best_score = s;
+        best = x;
+      }
+    }
+  }
+  return best;
 }
 
 core::Pose6 ConsensusOdometry::coarse_to_fine(const core::Pose6& x0) {
@@ -124,8 +155,13 @@ void ConsensusOdometry::replace_newest(const std::vector<Eigen::Vector3d>& point
 
 void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
   const Eigen::Isometry3d since = last_keyframe_pose_.inverse() * pose;
+  // A young map takes scans closer together, so that the first matches have a reference.
+  const double min_translation =
+      history_size_ < options_.map_warmup_scans
+          ? std::min(options_.map_warmup_translation, options_.map_min_translation)
+          : options_.map_min_translation;
   const bool due = history_size_ == 0 || options_.reference == Reference::kPreviousScan ||
-                   since.translation().norm() >= options_.map_min_translation ||
+                   since.translation().norm() >= min_translation ||
                    Eigen::AngleAxisd(since.linear()).angle() >= options_.map_min_rotation;
   if (!due) return;
   if (history_size_ == history_.size()) {  // the oldest scan leaves the reference
@@ -176,7 +212,11 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   // Constant-velocity prediction (rescaled to this scan's time step).
   const double dt =
       have_prev_ ? static_cast<double>((scan.stamp - prev_stamp_).count()) * 1e-9 : 0.1;
-  const double period = have_prev2_ ? prev_period_s_ : 0.1;
+  // One scan period: the time between the last two stamps, or at the start this scan's own
+  // span when it is a whole revolution.
+  const double span = static_cast<double>((scan.end - scan.stamp).count()) * 1e-9;
+  const double period =
+      have_prev2_ ? prev_period_s_ : (scan.complete() && span > 0.01 ? span : 0.1);
   const Eigen::Isometry3d motion =
       have_prev2_ ? scale_motion(prev_motion_, dt / period) : Eigen::Isometry3d::Identity();
   // In range, then downsampled: map_cell for the reference and Cv, scan_cell for matching.
@@ -208,11 +248,13 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     return res;
   }
   const Eigen::Isometry3d predicted = prev_pose_ * motion;
+  std::optional<Eigen::Isometry3d> first_velocity;  // motion per period, from the first match
   if (test_.size() < options_.min_points) {
     res.flags |= kOdomTooFewPoints;
     res.pose = predicted;
   } else {
     core::Pose6 x0 = core::to_pose6(predicted);
+    if (!have_prev2_) x0 = search_start(x0);
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
     Eigen::Isometry3d used_motion = motion;  // what the scan was deskewed with (over dt)
     bool converged = false;
@@ -220,11 +262,18 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
       converged = match(x0, res);
       const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
       if (newest_unskewed_ && converged) {
-        // The first reference scan went in undistorted; now the motion is known, deskew it
-        // (same velocity) and match again.
+        // The first reference scan went in undistorted, and so did this one: the match measured
+        // how far apart points fired at the same azimuth are, one scan period apart. That is the
+        // motion per period, not per dt (shorter when the first scan was partial). Deskew both
+        // with it and match again from the pose it gives at this scan's stamp.
         newest_unskewed_ = false;
-        deskew(newest_src_, scale_motion(estimated, to_period), period, scratch_);
+        first_velocity = estimated;
+        deskew(newest_src_, estimated, period, scratch_);
         replace_newest(scratch_, last_keyframe_pose_);
+        used_motion = scale_motion(estimated, dt / period);
+        deskew_all(estimated, period);
+        x0 = core::to_pose6(prev_pose_ * used_motion);
+        continue;
       } else {
         // Deskew again with the motion just estimated if it differs from the one used.
         const Eigen::Isometry3d diff = used_motion.inverse() * estimated;
@@ -251,6 +300,12 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   // Past the first scan (returned above), so the motion between the last two scans is known.
   prev_motion_ = prev_pose_.inverse() * res.pose;
   prev_period_s_ = std::max(dt, 1e-3);
+  if (first_velocity && dt < 0.5 * period) {
+    // A short partial first scan: a centimetre of error over a few hundredths of a second would
+    // be a large velocity error. The first match measured the motion over a whole period.
+    prev_motion_ = *first_velocity;
+    prev_period_s_ = period;
+  }
   have_prev2_ = true;
   newest_unskewed_ = false;
   update_reference(res.pose);

@@ -29,11 +29,14 @@ struct OdometryOptions {
   /// Scans the local map holds. A scan enters it once the sensor has moved map_min_translation
   /// or turned map_min_rotation since the last one that did (always with kPreviousScan), so a
   /// slow or stopped vehicle keeps a map spread over distance.
-  std::size_t local_map_scans = 10;
-  double map_min_translation = 0.3;  ///< m
+  std::size_t local_map_scans = 60;
+  double map_min_translation = 1.0;  ///< m
   double map_min_rotation = 0.035;   ///< rad (2 deg)
-  double voxel_size = 0.5;           ///< L of the reference NDT, m (paper: 0.5)
-  double scan_cell = 0.5;            ///< downsampling of the scan being matched, m
+  /// Until the local map holds this many scans, they enter after map_warmup_translation.
+  std::size_t map_warmup_scans = 10;
+  double map_warmup_translation = 0.3;  ///< m
+  double voxel_size = 0.5;              ///< L of the reference NDT, m (paper: 0.5)
+  double scan_cell = 0.5;               ///< downsampling of the scan being matched, m
   double map_cell = 0.1;  ///< downsampling of scans added to the reference and used for Cv, m
   double eta = 0.7;       ///< Cv threshold (paper: 0.7)
   double min_range = 1.0, max_range = 100.0;  ///< m; nearer points are the vehicle itself
@@ -51,6 +54,9 @@ struct OdometryOptions {
   /// after a failed match); on every scan with pyramid_every_scan.
   std::vector<double> pyramid_voxel_sizes = {2.0, 1.0};
   double pyramid_eigen_floor = 0.05;
+  /// Before the first match there is no velocity: horizontal offsets up to this far (m) from
+  /// the start are scored on the coarsest grid and the best one is the start.
+  double start_search_radius = 2.0;
   bool pyramid_every_scan = true;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
   ndt::NewtonOptions pyramid{.max_iterations = 10,
@@ -101,6 +107,7 @@ class ConsensusOdometry {
   // Replaces the newest reference scan by `points` placed at `pose`.
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
+  core::Pose6 search_start(const core::Pose6& x0);    // best of a grid of horizontal offsets
   void add_to_grids(const std::vector<Eigen::Vector3d>& points);
   void remove_from_grids(const std::vector<Eigen::Vector3d>& points);
   void finalize_grids();
