@@ -274,13 +274,12 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
         deskew_all(estimated, period);
         x0 = core::to_pose6(prev_pose_ * used_motion);
         continue;
-      } else {
-        // Deskew again with the motion just estimated if it differs from the one used.
-        const Eigen::Isometry3d diff = used_motion.inverse() * estimated;
-        const bool consistent =
-            diff.translation().norm() < 0.02 && Eigen::AngleAxisd(diff.linear()).angle() < 0.002;
-        if (!options_.deskew || consistent || pass == options_.deskew_refinements) break;
       }
+      // Deskew again with the motion just estimated if it differs from the one used.
+      const Eigen::Isometry3d diff = used_motion.inverse() * estimated;
+      const bool consistent =
+          diff.translation().norm() < 0.02 && Eigen::AngleAxisd(diff.linear()).angle() < 0.002;
+      if (!options_.deskew || consistent || pass == options_.deskew_refinements) break;
       used_motion = estimated;
       deskew_all(scale_motion(estimated, to_period), period);
       x0 = core::to_pose6(res.pose);
