@@ -99,15 +99,22 @@ void ScanAssembler::attribute_loss(std::uint32_t lost, const DecodedPacket& pack
   }
 }
 
-void ScanAssembler::append(const DecodedPacket& packet, const Firing& f,
-                           std::uint32_t base) noexcept {
+void ScanAssembler::append(const DecodedPacket& packet, int first, int last,
+                           std::chrono::nanoseconds packet_time) noexcept {
+  if (first >= last) return;
+  const Firing& head = packet.firings[static_cast<std::size_t>(first)];
+  const Firing& tail = packet.firings[static_cast<std::size_t>(last - 1)];
+  scan_.end = packet_time + std::chrono::nanoseconds(tail.offset_ns);
   auto& pts = scan_.points;
   const std::size_t room = pts.capacity() - pts.size();
-  const auto count = static_cast<std::size_t>(f.point_count);
+  const std::size_t count = static_cast<std::size_t>(tail.first_point + tail.point_count) -
+                            static_cast<std::size_t>(head.first_point);
   const std::size_t take = std::min(room, count);
-  const auto first = packet.points.begin() + f.first_point;
+  const auto from = packet.points.begin() + head.first_point;
   const std::size_t at = pts.size();
-  pts.insert(pts.end(), first, first + static_cast<std::ptrdiff_t>(take));
+  pts.insert(pts.end(), from, from + static_cast<std::ptrdiff_t>(take));
+  // Point times are offsets from the packet time; the scan started at or before this packet.
+  const auto base = static_cast<std::uint32_t>((packet_time - scan_.stamp).count());
   for (std::size_t i = at; i < pts.size(); ++i) pts[i].time_ns += base;
   if (take < count) {
     scan_.points_dropped += static_cast<std::uint32_t>(count - take);

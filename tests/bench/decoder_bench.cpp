@@ -1,5 +1,6 @@
 // Decoder + scan assembler throughput on simulated VLP-16 packets (street scene, 600 rpm).
 // Run: build/release/tests/bench/decoder_bench --benchmark_repetitions=5
+// The AVX2 kernel is used where the CPU has it; BM_Decode_* compare the two kernels.
 #include <benchmark/benchmark.h>
 
 #include <vector>
@@ -51,4 +52,31 @@ void BM_DecodeAssemble_Dual(benchmark::State& s) { run(s, true); }
 BENCHMARK(BM_DecodeAssemble_Strongest);
 BENCHMARK(BM_DecodeAssemble_Dual);
 
+}  // namespace
+
+namespace {
+// The decoder alone on the same packets, its portable and its AVX2 kernel side by side.
+void decode_only(benchmark::State& state, bool simd) {
+  const auto packets = make_packets(false);
+  cndt::vlp16::DecoderOptions o;
+  o.simd = simd;
+  const cndt::vlp16::Decoder dec(cndt::vlp16::Model::kVlp16, o);
+  cndt::vlp16::DecodedPacket out;
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const cndt::core::ByteSpan bytes(packets[i]);
+    cndt::vlp16::PacketHeader h;
+    if (cndt::vlp16::validate_data_packet(bytes, h) == cndt::vlp16::PacketError::kNone) {
+      dec.decode(bytes, h, out);
+    }
+    benchmark::DoNotOptimize(out.point_count);
+    i = (i + 1) % packets.size();
+  }
+  state.counters["packets_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+void BM_Decode_Portable(benchmark::State& s) { decode_only(s, false); }
+void BM_Decode_Simd(benchmark::State& s) { decode_only(s, true); }
+BENCHMARK(BM_Decode_Portable);
+BENCHMARK(BM_Decode_Simd);
 }  // namespace

@@ -33,6 +33,14 @@ struct PacketBuilder {
     bytes[off + 2] = refl;
     return *this;
   }
+  PacketBuilder& copy_record(int from_block, int from_rec, int to_block, int to_rec) {
+    const auto at = [](int block, int rec) {
+      return static_cast<std::size_t>(block) * 100 + 4 + static_cast<std::size_t>(rec) * 3;
+    };
+    for (std::size_t i = 0; i < 3; ++i)
+      bytes[at(to_block, to_rec) + i] = bytes[at(from_block, from_rec) + i];
+    return *this;
+  }
   PacketBuilder& all_records(std::uint16_t count, std::uint8_t refl) {
     for (int b = 0; b < 12; ++b) {
       for (int r = 0; r < 32; ++r) record(b, r, count, refl);

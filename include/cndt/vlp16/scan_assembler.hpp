@@ -54,8 +54,10 @@ class ScanAssembler {
   template <class Sink>
   void finish(Sink&& sink, std::uint32_t extra_flags);
   void start_scan(std::chrono::nanoseconds stamp, int relative_azimuth) noexcept;
-  // Copies a firing's points into the scan (up to its capacity), shifting their times by `base`.
-  void append(const DecodedPacket& packet, const Firing& f, std::uint32_t base) noexcept;
+  // Copies the points of firings [first, last) into the scan (up to its capacity), their times
+  // rebased from the packet onto the scan stamp, and moves the scan's end to the last firing.
+  void append(const DecodedPacket& packet, int first, int last,
+              std::chrono::nanoseconds packet_time) noexcept;
   // Charges `lost` packets to the scan they belonged to: when the cut fell among them, those
   // before it to the scan in progress and the rest to the next one.
   void attribute_loss(std::uint32_t lost, const DecodedPacket& packet) noexcept;
@@ -117,26 +119,26 @@ void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds pa
     case Continuity::kStale:
       return;  // a duplicate or a packet from the past: its firings would run time backwards
   }
-  bool counted_packet = false;
+  // Firings go to the open scan in runs: a run ends where the azimuth passes the cut.
+  int run = 0;  // first firing of the run not yet copied
   for (int i = 0; i < packet.firing_count; ++i) {
     const Firing& f = packet.firings[static_cast<std::size_t>(i)];
     const int rel = (f.azimuth - options_.cut_azimuth + 36000) % 36000;
     if (scan_open_ && rel < last_rel_) {
+      append(packet, run, i, packet_time);
+      run = i;
       finish(sink, 0);
       next_partial_ = false;
-      counted_packet = false;
     }
-    const std::chrono::nanoseconds t = packet_time + std::chrono::nanoseconds(f.offset_ns);
-    if (!scan_open_) start_scan(t, rel);
-    last_rel_ = rel;
-    if (!counted_packet) {
+    if (!scan_open_) {
+      start_scan(packet_time + std::chrono::nanoseconds(f.offset_ns), rel);
       ++scan_.packets;
-      counted_packet = true;
+    } else if (i == 0) {
+      ++scan_.packets;
     }
-    // Decoded point times are offsets from the packet time; rebase them onto the scan stamp.
-    append(packet, f, static_cast<std::uint32_t>((packet_time - scan_.stamp).count()));
-    scan_.end = t;
+    last_rel_ = rel;
   }
+  append(packet, run, packet.firing_count, packet_time);
 }
 
 }  // namespace cndt::vlp16
