@@ -47,9 +47,12 @@ void on_scan(const core::Scan& scan, void* user) {
   const Eigen::Quaterniond q(r.pose.linear());
   const Eigen::Vector3d t = r.pose.translation();
   const std::int64_t ns = r.stamp.count();
-  c.trajectory << fmt::format("{}.{:09d} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f}\n",
-                              ns / 1'000'000'000, ns % 1'000'000'000, t.x(), t.y(), t.z(), q.x(),
-                              q.y(), q.z(), q.w());
+  // A skipped scan has no pose; its line in the per-scan table says why.
+  if ((r.flags & slam::kOdomSkipped) == 0) {
+    c.trajectory << fmt::format("{}.{:09d} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f}\n",
+                                ns / 1'000'000'000, ns % 1'000'000'000, t.x(), t.y(), t.z(), q.x(),
+                                q.y(), q.z(), q.w());
+  }
   c.csv << fmt::format("{}.{:09d},{:.6f},{},{},{},{},{},{},{:.3f},{}\n", ns / 1'000'000'000,
                        ns % 1'000'000'000, r.cm, r.coarse_iterations, r.fine_iterations,
                        r.voxels_before, r.voxels_after, r.points, r.raw_points, ms, r.flags);

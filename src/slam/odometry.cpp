@@ -209,6 +209,10 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   OdometryResult res;
   res.stamp = scan.stamp;
   if (!scan.complete()) res.flags |= kOdomScanIncomplete;
+  if (!have_prev_ && options_.skip_partial_first_scan && (scan.flags & core::kScanPartial) != 0) {
+    res.flags |= kOdomSkipped;
+    return res;
+  }
   // Constant-velocity prediction (rescaled to this scan's time step).
   const double dt =
       have_prev_ ? static_cast<double>((scan.stamp - prev_stamp_).count()) * 1e-9 : 0.1;

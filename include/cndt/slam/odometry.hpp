@@ -41,6 +41,10 @@ struct OdometryOptions {
   double eta = 0.7;       ///< Cv threshold (paper: 0.7)
   double min_range = 1.0, max_range = 100.0;  ///< m; nearer points are the vehicle itself
   bool deskew = true;                         ///< undistort with the constant-velocity prediction
+  /// A stream's first scan is usually a partial revolution (the receiver started mid-turn). As
+  /// the first reference it covers only a sector and the start-up matches drift off by
+  /// decimetres; skipped, the trajectory starts at the first whole revolution.
+  bool skip_partial_first_scan = true;
   int deskew_refinements = 2;  ///< re-deskew with the estimated motion and match again
   std::size_t max_scan_points = 150'000;
   std::size_t max_map_voxels = 400'000;
@@ -75,6 +79,7 @@ enum OdometryFlags : std::uint32_t {
   kOdomTooFewPoints = 1u << 2,    ///< not matched; the prediction is reported
   kOdomDegenerate = 1u << 3,      ///< Cm = 0: the geometry does not fix the pose
   kOdomScanIncomplete = 1u << 4,  ///< the scan was partial, lossy or cut
+  kOdomSkipped = 1u << 5,  ///< a partial first revolution, not used: no pose (the next one starts)
 };
 
 struct OdometryResult {
