@@ -23,8 +23,7 @@ class DecoderKernel : public ::testing::TestWithParam<bool> {
   void SetUp() override { g_simd = GetParam(); }
 };
 
-DecodedPacket decode(const PacketBuilder& b, Model model, DecoderOptions opt = {}) {
-  opt.simd = g_simd;
+DecodedPacket decode_with(const PacketBuilder& b, Model model, const DecoderOptions& opt) {
   PacketHeader h;
   EXPECT_EQ(validate_data_packet(b.span(), h), PacketError::kNone);
   Decoder d(model, opt);
@@ -33,13 +32,10 @@ DecodedPacket decode(const PacketBuilder& b, Model model, DecoderOptions opt = {
   return out;
 }
 
-DecodedPacket decode_with(const PacketBuilder& b, Model model, const DecoderOptions& opt) {
-  PacketHeader h;
-  EXPECT_EQ(validate_data_packet(b.span(), h), PacketError::kNone);
-  Decoder d(model, opt);
-  DecodedPacket out;
-  d.decode(b.span(), h, out);
-  return out;
+// With the kernel of the running test.
+DecodedPacket decode(const PacketBuilder& b, Model model, DecoderOptions opt = {}) {
+  opt.simd = g_simd;
+  return decode_with(b, model, opt);
 }
 
 // Azimuth of a point in the sensor's clockwise convention, degrees in [0, 360).
