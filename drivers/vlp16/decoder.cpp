@@ -24,10 +24,6 @@ constexpr int kMaxPlausibleGap = 1500;
 Decoder::Decoder(Model model, const DecoderOptions& options)
     : table_(laser_table(model)),
       options_(options),
-      // A count of 0 means no return: the lower limit is at least one count.
-      min_count_(std::max(
-          1.0F, static_cast<float>(options.min_range_m / laser_table(model).range_unit_m))),
-      max_count_(static_cast<float>(options.max_range_m / laser_table(model).range_unit_m)),
       range_unit_(static_cast<float>(laser_table(model).range_unit_m)),
       sequence_ns_(
           static_cast<std::uint32_t>(std::lround(laser_table(model).sequence_period_us * 1000.0))),
@@ -38,39 +34,36 @@ Decoder::Decoder(Model model, const DecoderOptions& options)
     cos_table_[i] = static_cast<float>(std::cos(a));
     sin_table_[i] = static_cast<float>(std::sin(a));
   }
-  for (int k = 0; k < table_.lasers; ++k) {
-    const auto i = static_cast<std::size_t>(k);
-    const double el = table_.elevation_deg[i] * std::numbers::pi / 180.0;
-    const double az = table_.azimuth_offset_deg[i] * std::numbers::pi / 180.0;
-    const double t_us = table_.laser_offset_us(k);
-    cos_el_[i] = static_cast<float>(std::cos(el));
-    sin_el_[i] = static_cast<float>(std::sin(el));
-    z_offset_[i] =
-        options_.vertical_offsets ? static_cast<float>(table_.vertical_offset_m[i]) : 0.0F;
-    cos_az_off_[i] = static_cast<float>(std::cos(az));
-    sin_az_off_[i] = static_cast<float>(std::sin(az));
-    time_fraction_[i] = static_cast<float>(t_us / table_.sequence_period_us);
-    time_ns_[i] = static_cast<std::uint32_t>(std::lround(t_us * 1000.0));
-    ring_[i] = table_.ring[i];
-    tail_[i] = time_ns_[i] | (static_cast<std::uint64_t>(ring_[i]) << 32);
-  }
-  // The same constants in record order: a block's 32 records are 32 lasers of one sequence, or
+  // Per-laser constants in record order: a block's 32 records are 32 lasers of one sequence, or
   // 16 lasers of two sequences.
   const auto lasers = static_cast<std::size_t>(table_.lasers);
   for (std::size_t j = 0; j < kRecordsPerBlock; ++j) {
     const std::size_t k = j % lasers;
     const std::size_t sub = j / lasers;
-    records_.cos_el[j] = cos_el_[k];
-    records_.sin_el[j] = sin_el_[k];
-    records_.z_offset[j] = z_offset_[k];
-    records_.cos_az[j] = cos_az_off_[k];
-    records_.sin_az[j] = sin_az_off_[k];
-    records_.phase[j] = static_cast<float>(sub) + time_fraction_[k];
-    records_.tail[j] = tail_[k] + sub * sequence_ns_;
+    const double el = table_.elevation_deg[k] * std::numbers::pi / 180.0;
+    const double az = table_.azimuth_offset_deg[k] * std::numbers::pi / 180.0;
+    const double t_us = table_.laser_offset_us(static_cast<int>(k));
+    records_.cos_el[j] = static_cast<float>(std::cos(el));
+    records_.sin_el[j] = static_cast<float>(std::sin(el));
+    records_.z_offset[j] =
+        options_.vertical_offsets ? static_cast<float>(table_.vertical_offset_m[k]) : 0.0F;
+    records_.cos_az[j] = static_cast<float>(std::cos(az));
+    records_.sin_az[j] = static_cast<float>(std::sin(az));
+    records_.phase[j] =
+        static_cast<float>(sub) + static_cast<float>(t_us / table_.sequence_period_us);
+    // The point's last 8 bytes: time after the packet stamp, ring << 32.
+    const auto time_ns =
+        static_cast<std::uint64_t>(std::lround(t_us * 1000.0)) + sub * sequence_ns_;
+    records_.tail[j] = time_ns | (static_cast<std::uint64_t>(table_.ring[k]) << 32);
   }
-  min_count_u_ = static_cast<std::uint32_t>(std::ceil(min_count_));
+  // Range limits in distance counts (rounded to float first, as the limits always were). A count
+  // of 0 means no return: the lower limit is at least one count.
+  const auto min_count =
+      std::max(1.0F, static_cast<float>(options_.min_range_m / table_.range_unit_m));
+  const auto max_count = static_cast<float>(options_.max_range_m / table_.range_unit_m);
+  min_count_u_ = static_cast<std::uint32_t>(std::ceil(min_count));
   count_span_u_ =
-      static_cast<std::uint32_t>(std::floor(std::min(max_count_, 65535.0F))) - min_count_u_;
+      static_cast<std::uint32_t>(std::floor(std::min(max_count, 65535.0F))) - min_count_u_;
 #if CNDT_DECODER_AVX2
   avx2_ = options_.simd && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
 #endif
@@ -313,6 +306,7 @@ CNDT_AVX2_INLINE void put_eight(unsigned char* points, std::size_t& np, const Ei
   std::memcpy(dst + offsetof(core::Point, time_ns), &tail, sizeof tail);
   np += keep;
 }
+#undef CNDT_AVX2_INLINE
 }  // namespace
 
 // The arithmetic of block_geometry() and decode_portable(), eight records at a time.

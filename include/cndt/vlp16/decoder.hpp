@@ -76,21 +76,13 @@ class Decoder {
 
   const LaserTable& table_;
   DecoderOptions options_;
-  float min_count_, max_count_;  // range limits in distance counts
   float range_unit_;
   std::uint32_t sequence_ns_;
-  // Per-laser constants, one array each so the per-sequence loops vectorise.
-  std::array<float, 32> cos_el_{}, sin_el_{}, z_offset_{};
-  std::array<float, 32> cos_az_off_{}, sin_az_off_{};
-  std::array<float, 32> time_fraction_{};  // laser firing time / sequence time
-  std::array<std::uint32_t, 32> time_ns_{};
-  std::array<std::uint16_t, 32> ring_{};
-  std::array<std::uint64_t, 32> tail_{};  // time_ns | ring << 32: a point's last 8 bytes
-  // The per-laser constants in the order of a block's records (laser, or sequence and laser).
+  // Per-laser constants in the order of a block's records (laser, or sequence and laser).
   struct RecordTables {
     alignas(32) std::array<float, kRecordsPerBlock> cos_el, sin_el, z_offset, cos_az, sin_az;
     alignas(32) std::array<float, kRecordsPerBlock> phase;  // firing time in sequence periods
-    std::array<std::uint64_t, kRecordsPerBlock> tail;       // point time and ring, as in tail_
+    std::array<std::uint64_t, kRecordsPerBlock> tail;       // time_ns | ring << 32
   };
   RecordTables records_{};
   bool avx2_ = false;                                 // the CPU runs decode_avx2()
