@@ -30,12 +30,6 @@ VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
   mask_ = slots - 1;
 }
 
-VoxelKey VoxelGrid::key_of(const Eigen::Vector3d& p) const noexcept {
-  return {static_cast<std::int32_t>(std::floor(p.x() * inv_size_)),
-          static_cast<std::int32_t>(std::floor(p.y() * inv_size_)),
-          static_cast<std::int32_t>(std::floor(p.z() * inv_size_))};
-}
-
 Eigen::Vector3d VoxelGrid::corner(const VoxelKey& k) const noexcept {
   return Eigen::Vector3d(k.x, k.y, k.z) * options_.voxel_size;
 }

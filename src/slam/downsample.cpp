@@ -3,6 +3,8 @@
 #include <bit>
 #include <cmath>
 
+#include "cndt/core/cell.hpp"
+
 namespace cndt::slam {
 
 Downsampler::Downsampler(double cell, std::size_t capacity) : inv_cell_(1.0 / cell) {
@@ -14,9 +16,9 @@ Downsampler::Downsampler(double cell, std::size_t capacity) : inv_cell_(1.0 / ce
 }
 
 void Downsampler::bin(const Eigen::Vector3d& p, double t) {
-  const auto x = static_cast<std::int64_t>(std::floor(p.x() * inv_cell_));
-  const auto y = static_cast<std::int64_t>(std::floor(p.y() * inv_cell_));
-  const auto z = static_cast<std::int64_t>(std::floor(p.z() * inv_cell_));
+  const std::int64_t x = core::cell_index(p.x() * inv_cell_);
+  const std::int64_t y = core::cell_index(p.y() * inv_cell_);
+  const std::int64_t z = core::cell_index(p.z() * inv_cell_);
   const std::int64_t key = ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
   std::size_t s =
       static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> 20) &

@@ -19,10 +19,22 @@ bool finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
 }  // namespace
 
+std::size_t cv_dof_capacity(const OdometryOptions& o) {
+  // The Cv points are centroids of map_cell cells of the sensor frame, one per cell. A voxel of
+  // edge L, in any orientation to those cells, lies within ((L + 2 sqrt(3) cell) / cell)^3 cell
+  // volumes of them (the cells it meets fit in the voxel grown by a cell diagonal each way).
+  if (!(o.map_cell > 0.0)) return o.max_scan_points;
+  const double per_axis =
+      std::ceil((o.voxel_size + 2.0 * std::sqrt(3.0) * o.map_cell) / o.map_cell);
+  const double cells = per_axis * per_axis * per_axis;
+  return cells >= static_cast<double>(o.max_scan_points) ? o.max_scan_points
+                                                         : static_cast<std::size_t>(cells);
+}
+
 ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
     : options_(o),
       grid_({o.voxel_size, o.max_map_voxels, 5, 0.001, o.drop_ring_arcs}),
-      chi2_(o.max_scan_points),
+      chi2_(cv_dof_capacity(o)),
       lookup_cache_(o.max_scan_points),
       map_sampler_(o.map_cell, o.max_scan_points),
       scan_sampler_(o.scan_cell, o.max_scan_points) {

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "cndt/core/cell.hpp"
+
 namespace cndt::ndt {
 
 /// Integer voxel coordinates packed into one key.
@@ -61,7 +63,10 @@ class VoxelGrid {
   /// Voxels left empty by remove(), still occupying a slot.
   [[nodiscard]] std::size_t empty_voxels() const noexcept { return empty_; }
 
-  [[nodiscard]] VoxelKey key_of(const Eigen::Vector3d& p) const noexcept;
+  [[nodiscard]] VoxelKey key_of(const Eigen::Vector3d& p) const noexcept {
+    return {core::cell_index(p.x() * inv_size_), core::cell_index(p.y() * inv_size_),
+            core::cell_index(p.z() * inv_size_)};
+  }
   /// The voxel holding `p`, or nullptr.
   [[nodiscard]] const Voxel* find(const Eigen::Vector3d& p) const noexcept {
     return find(key_of(p));

@@ -73,6 +73,10 @@ struct OdometryOptions {
   ndt::NewtonOptions naive{.max_iterations = 30};
 };
 
+/// Most test points one reference voxel can hold after downsampling to map_cell (about 600
+/// with the defaults): the degrees of freedom the Cv chi-square table is filled for.
+std::size_t cv_dof_capacity(const OdometryOptions& options);
+
 enum OdometryFlags : std::uint32_t {
   kOdomFirstScan = 1u << 0,       ///< starts the trajectory: identity pose
   kOdomNotConverged = 1u << 1,    ///< iteration cap reached

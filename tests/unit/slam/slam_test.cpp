@@ -1,8 +1,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
+#include "cndt/ndt/voxel_grid.hpp"
 #include "cndt/slam/downsample.hpp"
+#include "cndt/slam/odometry.hpp"
 #include "cndt/slam/trajectory_eval.hpp"
 
 namespace cndt::slam {
@@ -21,6 +24,31 @@ TEST(Downsampler, OneCentroidPerCellAndABoundedOutput) {
   small.run(in, out);
   EXPECT_EQ(out.size(), 2u);
   EXPECT_EQ(small.dropped(), 1u);
+}
+
+TEST(Downsampler, NoVoxelHoldsMoreCentroidsThanTheConsensusTableCovers) {
+  // A dense cube downsampled at map_cell, turned and shifted at random, binned into reference
+  // voxels: no voxel may hold more points than cv_dof_capacity() (else its Cv would use a wrong
+  // chi-square quantile).
+  const OdometryOptions o;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 3.0);
+  std::vector<Eigen::Vector3d> dense(400'000);
+  for (auto& p : dense) p = {u(rng), u(rng), u(rng)};
+  std::vector<Eigen::Vector3d> centroids;
+  Downsampler d(o.map_cell, dense.size());
+  d.run(dense, centroids);
+  std::uint32_t most = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::Quaterniond q =
+        Eigen::Quaterniond(u(rng) - 1.5, u(rng) - 1.5, u(rng) - 1.5, u(rng) - 1.5).normalized();
+    const Eigen::Vector3d t(u(rng), u(rng), u(rng));
+    ndt::VoxelGrid grid({o.voxel_size, 10'000, 5, 0.001, false});
+    for (const auto& p : centroids) grid.add(q * p + t);
+    for (const auto& v : grid.voxels()) most = std::max(most, v.count);
+  }
+  EXPECT_GT(most, 125u);  // more than (L / cell)^3: turned cells overlap voxel edges
+  EXPECT_LE(most, cv_dof_capacity(o));
 }
 
 std::vector<TimedPose> line(int n, double step, double yaw_rate = 0.0) {
