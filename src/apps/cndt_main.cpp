@@ -24,12 +24,14 @@ int main(int argc, char** argv) {
   cndt::cli::RecordArgs record;
   cndt::cli::ReplayArgs replay;
   cndt::cli::EvalArgs eval;
+  cndt::cli::MapArgs map;
   cndt::cli::register_info(app, info);
   cndt::cli::register_decode(app, decode);
   cndt::cli::register_sim(app, sim);
   cndt::cli::register_record(app, record);
   cndt::cli::register_replay(app, replay);
   cndt::cli::register_eval(app, eval);
+  cndt::cli::register_map(app, map);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -43,5 +45,6 @@ int main(int argc, char** argv) {
   if (app.got_subcommand("record")) return cndt::cli::run_record(record);
   if (app.got_subcommand("replay")) return cndt::cli::run_replay(replay);
   if (app.got_subcommand("eval")) return cndt::cli::run_eval(eval);
+  if (app.got_subcommand("map")) return cndt::cli::run_map(map);
   return cndt::core::kExitUsage;
 }

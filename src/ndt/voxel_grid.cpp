@@ -55,13 +55,40 @@ void VoxelGrid::mark_dirty(Voxel& v, std::size_t index) noexcept {
   dirty_.push_back(static_cast<std::uint32_t>(index));  // at most one entry per voxel
 }
 
-bool VoxelGrid::add(const Eigen::Vector3d& p) noexcept {
+bool VoxelGrid::add(const Eigen::Vector3d& p) noexcept { return add_point(p) != nullptr; }
+
+bool VoxelGrid::add(const Eigen::Vector3d& p, double consensus) noexcept {
+  Voxel* v = add_point(p);
+  if (v == nullptr) return false;
+  // Running mean over the points added (count already includes this one).
+  v->consensus += static_cast<float>((consensus - v->consensus) / v->count);
+  return true;
+}
+
+bool VoxelGrid::restore(const VoxelKey& k, std::uint32_t count, const Eigen::Vector3d& sum,
+                        const Eigen::Matrix3d& sum_outer, float consensus) noexcept {
+  const std::size_t s = slot_of(k);
+  if (count == 0 || table_[s] >= 0 || voxels_.size() == options_.capacity) return false;
+  table_[s] = static_cast<std::int32_t>(voxels_.size());
+  voxels_.emplace_back();
+  Voxel& v = voxels_.back();
+  v.key = k;
+  v.count = count;
+  v.sum = sum;
+  v.sum_outer = sum_outer;
+  v.consensus = consensus;
+  ++version_;
+  mark_dirty(v, voxels_.size() - 1);
+  return true;
+}
+
+Voxel* VoxelGrid::add_point(const Eigen::Vector3d& p) noexcept {
   const VoxelKey k = key_of(p);
   const std::size_t s = slot_of(k);
   if (table_[s] < 0) {
     if (voxels_.size() == options_.capacity) {
       ++refused_;
-      return false;
+      return nullptr;
     }
     table_[s] = static_cast<std::int32_t>(voxels_.size());
     voxels_.emplace_back();
@@ -77,7 +104,7 @@ bool VoxelGrid::add(const Eigen::Vector3d& p) noexcept {
   v.sum += q;                                  // eq 1
   v.sum_outer.noalias() += q * q.transpose();  // eq 2
   mark_dirty(v, index);
-  return true;
+  return &v;
 }
 
 bool VoxelGrid::remove(const Eigen::Vector3d& p) noexcept {
@@ -132,12 +159,17 @@ void VoxelGrid::finalize() noexcept {
 void VoxelGrid::compact() noexcept {
   finalize();
   std::erase_if(voxels_, [](const Voxel& v) { return v.count == 0; });  // keeps the capacity
+  rebuild_table();
+}
+
+void VoxelGrid::rebuild_table() noexcept {
   ++version_;
   std::fill(table_.begin(), table_.end(), -1);
+  empty_ = 0;
   for (std::size_t i = 0; i < voxels_.size(); ++i) {
     table_[slot_of(voxels_[i].key)] = static_cast<std::int32_t>(i);
+    if (voxels_[i].count == 0) ++empty_;
   }
-  empty_ = 0;
 }
 
 void VoxelGrid::clear() noexcept {

@@ -11,6 +11,9 @@
 #include <string>
 #include <vector>
 
+#include "cndt/cli/cloud_io.hpp"
+#include "cndt/core/bytes.hpp"
+#include "cndt/slam/map_file.hpp"
 #include "temp_dir.hpp"
 
 namespace {
@@ -190,6 +193,91 @@ TEST(CliReplay, CloudFoldersReplayAndBadCloudsAreNamed) {
   r = run("replay " + dir.file("empty") + " --out " + dir.file("r3"));
   EXPECT_EQ(r.code, 65) << r.output;
   EXPECT_NE(r.output.find("no .bin or .pcd"), std::string::npos) << r.output;
+}
+
+}  // namespace
+
+namespace {
+
+std::size_t field(const std::string& text, const std::string& key) {
+  const auto at = text.find(key + ": ");
+  if (at == std::string::npos) return 0;
+  return std::stoul(text.substr(at + key.size() + 2));
+}
+
+TEST(CliMap, InfoAndExportsAgreeAndTheExportsParseBack) {
+  const cndt::test::TempDir dir;
+  cndt::slam::MapOptions o;
+  o.capacity = 100'000;
+  cndt::slam::NdtMap map(o);
+  for (int i = 0; i < 200; ++i) {  // a floor, a wall, and a few single points
+    for (int j = 0; j < 40; ++j) {
+      map.add({0.05 * i, 0.05 * j, 0.01 * ((i * 7 + j * 3) % 5)}, 0.9);
+      map.add({0.05 * i, 2.0 + 0.01 * ((i + j) % 3), 0.05 * j}, 0.8);
+    }
+  }
+  for (int k = 0; k < 7; ++k) map.add({30.0 + 3 * k, 5.0, 1.0}, 1.0);
+  map.finalize();
+  const std::string file = dir.file("m.cndtmap");
+  ASSERT_FALSE(cndt::slam::save_map_file(map, file));
+
+  const CliRun info = run("map info " + file);
+  ASSERT_EQ(info.code, 0) << info.output;
+  EXPECT_EQ(field(info.output, "voxels"), map.size());
+  const std::size_t gaussians = field(info.output, "voxels with a Gaussian");
+  EXPECT_EQ(gaussians, map.gaussians());
+  EXPECT_LT(gaussians, map.size());  // the single points have no Gaussian
+  EXPECT_EQ(field(info.output, "points"), map.points());
+
+  // PLY, read by hand: header lines, then 24-byte little-endian vertices.
+  const std::string ply = dir.file("m.ply");
+  const CliRun e1 = run("map export " + file + " --ply " + ply);
+  ASSERT_EQ(e1.code, 0) << e1.output;
+  std::ifstream in(ply, std::ios::binary);
+  std::string line;
+  std::vector<std::string> props;
+  std::size_t vertices = 0;
+  while (std::getline(in, line) && line != "end_header") {
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::stoul(line.substr(15));
+    if (line.rfind("property ", 0) == 0) props.push_back(line.substr(9));
+  }
+  ASSERT_EQ(line, "end_header");
+  EXPECT_EQ(vertices, gaussians);
+  EXPECT_EQ(props, (std::vector<std::string>{"float x", "float y", "float z", "float size",
+                                             "float cv", "uint count"}));
+  std::vector<std::uint8_t> body((std::istreambuf_iterator<char>(in)),
+                                 std::istreambuf_iterator<char>());
+  ASSERT_EQ(body.size(), vertices * 24);
+  std::size_t k = 0;
+  for (const auto& v : map.grid().voxels()) {
+    if (!v.has_gaussian) continue;
+    EXPECT_EQ(cndt::core::load_le_f32(body, k * 24), static_cast<float>(v.mean.x()));
+    EXPECT_EQ(cndt::core::load_le_f32(body, k * 24 + 8), static_cast<float>(v.mean.z()));
+    EXPECT_NEAR(cndt::core::load_le_f32(body, k * 24 + 16), v.consensus, 1e-6);
+    EXPECT_EQ(cndt::core::load_le32(body, k * 24 + 20), v.count);
+    ++k;
+  }
+
+  // PCD, read with the replay's PCD reader.
+  const std::string pcd = dir.file("m.pcd");
+  const CliRun e2 = run("map export " + file + " --pcd " + pcd);
+  ASSERT_EQ(e2.code, 0) << e2.output;
+  cndt::core::Scan scan(100'000);
+  ASSERT_FALSE(cndt::cli::read_cloud(pcd, scan));
+  ASSERT_EQ(scan.points.size(), gaussians);
+  EXPECT_EQ(scan.points[0].x, cndt::core::load_le_f32(body, 0));
+
+  // Bad input: not a map, a damaged map, no output format.
+  const std::string text = dir.file("notes.txt");
+  std::ofstream(text) << "not a map\n";
+  const CliRun bad = run("map info " + text);
+  EXPECT_EQ(bad.code, 65);
+  EXPECT_NE(bad.output.find("not a cndt map file"), std::string::npos) << bad.output;
+  std::filesystem::resize_file(file, std::filesystem::file_size(file) - 1);
+  const CliRun cut = run("map export " + file + " --ply " + ply);
+  EXPECT_EQ(cut.code, 65);
+  EXPECT_NE(cut.output.find("truncated"), std::string::npos) << cut.output;
+  EXPECT_EQ(run("map export " + file).code, 2);
 }
 
 }  // namespace

@@ -88,6 +88,15 @@ struct EvalArgs {
 void register_eval(CLI::App& app, EvalArgs& args);
 int run_eval(const EvalArgs& args);
 
+struct MapArgs {
+  enum class Action { kInfo, kExport } action = Action::kInfo;
+  std::string file;
+  std::string ply;
+  std::string pcd;
+};
+void register_map(CLI::App& app, MapArgs& args);
+int run_map(const MapArgs& args);
+
 struct RecordArgs {
   std::string out;
   std::string bind_address = "0.0.0.0";

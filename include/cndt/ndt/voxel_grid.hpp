@@ -26,6 +26,8 @@ struct Voxel {
   // Derived by VoxelGrid::finalize() (the fields scoring reads come first):
   bool has_gaussian = false;  ///< N_j >= min_points
   bool dirty = false;         ///< changed since the last finalize()
+  /// Mean voxel consensus Cv of the points added with one (a map's voxels); 0 otherwise.
+  float consensus = 0.0f;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d inv_cov = Eigen::Matrix3d::Zero();
   // Running sums, corner-relative: m_j = sum (p_i - c), S_j = sum (p_i - c)(p_i - c)^T.
@@ -49,6 +51,21 @@ class VoxelGrid {
 
   /// Adds one point (metres, grid frame). False when a new voxel would exceed the capacity.
   bool add(const Eigen::Vector3d& p) noexcept;
+  /// The same for a point that carries a voxel consensus Cv: the voxel keeps their mean.
+  bool add(const Eigen::Vector3d& p, double consensus) noexcept;
+  /// Re-creates a voxel from its stored running sums (a map read back from a file). False when
+  /// the key is already present, count is 0, or the grid is full.
+  bool restore(const VoxelKey& key, std::uint32_t count, const Eigen::Vector3d& sum,
+               const Eigen::Matrix3d& sum_outer, float consensus) noexcept;
+  /// Drops every voxel for which pred(voxel) holds and rebuilds the table (indices change).
+  /// Changes not yet finalized are finalized first. Returns the number dropped.
+  template <class Pred>
+  std::size_t erase_voxels_if(Pred pred) noexcept {
+    finalize();
+    const std::size_t n = std::erase_if(voxels_, pred);  // keeps the capacity
+    if (n > 0) rebuild_table();
+    return n;
+  }
   /// Takes back a point added before (the same coordinates). A voxel left empty stays in the
   /// table, without a Gaussian, until compact(). False when no voxel holds `p`.
   bool remove(const Eigen::Vector3d& p) noexcept;
@@ -86,6 +103,8 @@ class VoxelGrid {
 
  private:
   [[nodiscard]] std::size_t slot_of(const VoxelKey& k) const noexcept;
+  Voxel* add_point(const Eigen::Vector3d& p) noexcept;  // nullptr when full
+  void rebuild_table() noexcept;
   [[nodiscard]] Eigen::Vector3d corner(const VoxelKey& k) const noexcept;
   void mark_dirty(Voxel& v, std::size_t index) noexcept;
   void derive(Voxel& v) const noexcept;
