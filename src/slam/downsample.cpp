@@ -7,7 +7,8 @@
 
 namespace cndt::slam {
 
-Downsampler::Downsampler(double cell, std::size_t capacity) : inv_cell_(1.0 / cell) {
+Downsampler::Downsampler(double cell, std::size_t capacity)
+    : inv_cell_(1.0 / cell), capacity_(capacity) {
   cells_.reserve(capacity);
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(16, capacity * 2));
   table_.assign(slots, -1);
@@ -27,7 +28,7 @@ void Downsampler::bin(const Eigen::Vector3d& p, double t) {
     s = (s + 1) & mask_;
   }
   if (table_[s] < 0) {
-    if (cells_.size() == cells_.capacity()) {
+    if (cells_.size() == capacity_) {  // not cells_.capacity(): a copy reserves only its size
       ++dropped_;
       return;
     }

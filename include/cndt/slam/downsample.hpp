@@ -34,6 +34,7 @@ class Downsampler {
   void bin(const Eigen::Vector3d& p, double t);
   void reset();
   double inv_cell_;
+  std::size_t capacity_;
   std::vector<Cell> cells_;
   std::vector<std::int32_t> table_;
   std::vector<std::size_t> used_slots_;
