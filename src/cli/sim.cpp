@@ -25,6 +25,9 @@ void register_sim(CLI::App& app, SimArgs& a) {
       ->check(CLI::Range(0.1, 86400.0));
   cmd->add_option("--out", a.out_dir, "Output folder (created if missing)")->required();
   cmd->add_option("--seed", a.seed, "World, traffic and noise seed")->capture_default_str();
+  cmd->add_option("--world-seed", a.world_seed,
+                  "Seed of the static world alone (default: --seed): captures with one world "
+                  "seed and different --seed share the world and differ in movers and noise");
   cmd->add_option("--movers", a.movers, "Moving objects (cars, or pedestrians indoors/campus)")
       ->capture_default_str()
       ->check(CLI::Range(0, 64));
@@ -58,7 +61,7 @@ int run_sim(const SimArgs& a) {
     return core::kExitUsage;
   }
   const auto t0 = std::chrono::steady_clock::now();
-  const sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed);
+  const sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed);
   sim::LidarSimOptions o;
   o.rpm = a.rpm;
   o.dual = a.dual;

@@ -143,10 +143,11 @@ std::string_view scene_name(SceneKind kind) {
   return "street";
 }
 
-Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t seed) {
+Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t seed,
+                  std::uint64_t world_seed) {
   Scene sc;
   sc.kind = kind;
-  Rng rng(seed, 0x5CE7E);
+  Rng rng(world_seed != 0 ? world_seed : seed, 0x5CE7E);
   double lane_same = -1.75, lane_other = 1.75;
   bool pedestrians = false;
   switch (kind) {

@@ -59,6 +59,7 @@ struct SimArgs {
   double duration_s = 10.0;
   std::string out_dir;
   std::uint64_t seed = 1;
+  std::uint64_t world_seed = 0;  ///< 0: the same as seed
   int movers = 4;
   double drop_rate = 0.0;
   bool dual = false;

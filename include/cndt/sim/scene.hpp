@@ -64,6 +64,9 @@ struct Scene {
 };
 
 /// Builds a scene long enough for `duration_s` of driving. Deterministic for a seed.
-Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t seed);
+/// `world_seed` draws the static world (0: the same as `seed`); `seed` the movers. Two captures
+/// of one world with different traffic share the world seed.
+Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t seed,
+                  std::uint64_t world_seed = 0);
 
 }  // namespace cndt::sim
