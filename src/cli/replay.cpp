@@ -8,10 +8,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "cndt/cli/alloc_counter.hpp"
 #include "cndt/cli/cloud_io.hpp"
 #include "cndt/cli/commands.hpp"
+#include "cndt/slam/map_file.hpp"
+#include "cndt/slam/mapper.hpp"
 #include "cndt/slam/odometry.hpp"
 
 namespace cndt::cli {
@@ -21,7 +24,11 @@ constexpr std::size_t kWarmupScans = 20;  // buffers reach their working size by
 
 struct ReplayContext {
   slam::ConsensusOdometry* odometry = nullptr;
+  slam::Mapper* mapper = nullptr;  // null: odometry only
   std::ofstream trajectory, csv;
+  std::ofstream odometry_tum, refined_tum, refined_csv;  // with the mapper
+  std::vector<double> map_cm;                            // Cm against the map, per refined scan
+  std::vector<double> mapper_ms;                         // per closed keyframe
   std::size_t max_scans = 0;
   std::size_t scans = 0;
   std::vector<double> ms;
@@ -29,6 +36,50 @@ struct ReplayContext {
   std::uint64_t allocations = 0;
   bool done = false;
 };
+
+void write_tum(std::ofstream& out, double t, const Eigen::Isometry3d& pose) {
+  const Eigen::Quaterniond q(pose.linear());
+  const Eigen::Vector3d p = pose.translation();
+  const auto ns = static_cast<std::int64_t>(std::llround(t * 1e9));
+  out << fmt::format("{}.{:09d} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f}\n",
+                     ns / 1'000'000'000, ns % 1'000'000'000, p.x(), p.y(), p.z(), q.x(), q.y(),
+                     q.z(), q.w());
+}
+
+// "x,y,z,roll,pitch,yaw" (metres, degrees) as a pose.
+core::Result<Eigen::Isometry3d> parse_pose(const std::string& s) {
+  std::vector<double> v;
+  std::stringstream in(s);
+  for (std::string item; std::getline(in, item, ',');) {
+    try {
+      std::size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size() || !std::isfinite(v.back())) v.clear();
+    } catch (const std::exception&) {
+      v.clear();
+    }
+    if (v.empty()) break;
+  }
+  if (v.size() != 6) {
+    return core::Error{core::kExitUsage,
+                       fmt::format("--initial-pose '{}': expected x,y,z,roll,pitch,yaw (metres, "
+                                   "degrees), six numbers",
+                                   s)};
+  }
+  constexpr double kDeg = M_PI / 180.0;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = core::rotation(v[3] * kDeg, v[4] * kDeg, v[5] * kDeg);
+  T.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
+  return T;
+}
+
+void write_refined(ReplayContext& c) {
+  for (const auto& p : c.mapper->refined()) {
+    write_tum(c.refined_tum, p.stamp, p.pose);
+    c.refined_csv << fmt::format("{:.9f},{},{:.6f}\n", p.stamp, c.mapper->stats().keyframes, p.cm);
+    if (!std::isnan(p.cm)) c.map_cm.push_back(p.cm);
+  }
+}
 
 void on_scan(const core::Scan& scan, void* user) {
   auto& c = *static_cast<ReplayContext*>(user);
@@ -44,14 +95,26 @@ void on_scan(const core::Scan& scan, void* user) {
   const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   c.ms.push_back(ms);
   c.iterations += static_cast<std::uint64_t>(r.coarse_iterations + r.fine_iterations);
-  const Eigen::Quaterniond q(r.pose.linear());
-  const Eigen::Vector3d t = r.pose.translation();
   const std::int64_t ns = r.stamp.count();
   // A skipped scan has no pose; its line in the per-scan table says why.
   if ((r.flags & slam::kOdomSkipped) == 0) {
-    c.trajectory << fmt::format("{}.{:09d} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f}\n",
-                                ns / 1'000'000'000, ns % 1'000'000'000, t.x(), t.y(), t.z(), q.x(),
-                                q.y(), q.z(), q.w());
+    if (c.mapper == nullptr) {
+      write_tum(c.trajectory, static_cast<double>(ns) * 1e-9, r.pose);
+    } else {
+      if ((r.flags & slam::kOdomTooFewPoints) == 0) {
+        const auto m0 = std::chrono::steady_clock::now();
+        const bool closed =
+            c.mapper->add(static_cast<double>(ns) * 1e-9, r.pose, c.odometry->scan_points());
+        if (closed) {
+          c.mapper_ms.push_back(
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - m0)
+                  .count());
+          write_refined(c);
+        }
+      }
+      write_tum(c.odometry_tum, static_cast<double>(ns) * 1e-9, r.pose);
+      write_tum(c.trajectory, static_cast<double>(ns) * 1e-9, c.mapper->correction() * r.pose);
+    }
   }
   c.csv << fmt::format("{}.{:09d},{:.6f},{},{},{},{},{},{},{:.3f},{}\n", ns / 1'000'000'000,
                        ns % 1'000'000'000, r.cm, r.coarse_iterations, r.fine_iterations,
@@ -98,6 +161,27 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
       ->check(CLI::IsMember({"local-map", "previous-scan"}));
   cmd->add_option("--max-scans", a.max_scans, "Stop after this many scans (0: all)")
       ->capture_default_str();
+  cmd->add_flag("--mapper", a.mapper,
+                "Run the mapper (keyframes, eq-7 refinement, map): trajectory.tum is then the "
+                "odometry corrected by the map as it stood at each scan, odometry.tum the "
+                "odometry alone, refined.tum every scan pose after its keyframe's refinement and "
+                "refined.csv its Cm against the map. Off by default: on the simulated loop it "
+                "does not yet beat the odometry (docs/mapper.md). --map and --save-map imply it");
+  auto* map = cmd->add_option("--map", a.map,
+                              "Localize in this prior map (a cndt map file) instead of building "
+                              "one from scratch");
+  cmd->add_option("--map-mode", a.map_mode,
+                  "With --map: frozen (the prior map is not changed) or update (refined scans "
+                  "are added to it)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"frozen", "update"}))
+      ->needs(map);
+  cmd->add_option("--initial-pose", a.initial_pose,
+                  "With --map: the first scan's pose in the map frame, x,y,z,roll,pitch,yaw "
+                  "(metres, degrees; default 0,0,0,0,0,0)")
+      ->needs(map);
+  cmd->add_option("--save-map", a.save_map,
+                  "Write the map here at the end (atomically; see docs/map_format.md)");
   add_capture_options(*cmd, a.capture_args);
 }
 
@@ -113,11 +197,41 @@ int run_replay(const ReplayArgs& a) {
   slam::ConsensusOdometry odometry(oo);
   ReplayContext ctx;
   ctx.odometry = &odometry;
+  slam::MapperOptions mo;
+  mo.max_scan_points = oo.max_scan_points;
+  mo.eta = oo.eta;
+
+  std::optional<slam::Mapper> mapper;
+  if (a.mapper || !a.map.empty() || !a.save_map.empty()) {
+    mapper.emplace(mo);
+    if (!a.map.empty()) {
+      Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+      if (!a.initial_pose.empty()) {
+        auto pose = parse_pose(a.initial_pose);
+        if (!pose) return fail(pose.error());
+        start = pose.value();
+      }
+      auto prior = slam::load_map_file(a.map, mo.map);
+      if (!prior) return fail(prior.error());
+      spdlog::info("localizing in '{}': {} voxels", a.map, prior.value().size());
+      mo.update_map = a.map_mode == "update";
+      mapper.emplace(mo);
+      mapper->start_from(std::move(prior.value()), start);
+    }
+    ctx.mapper = &*mapper;
+  }
   ctx.max_scans = a.max_scans;
   const std::filesystem::path dir(a.out_dir);
   ctx.trajectory.open(dir / "trajectory.tum", std::ios::trunc);
   ctx.csv.open(dir / "scans.csv", std::ios::trunc);
-  if (!ctx.trajectory || !ctx.csv) {
+  if (ctx.mapper != nullptr) {
+    ctx.odometry_tum.open(dir / "odometry.tum", std::ios::trunc);
+    ctx.refined_tum.open(dir / "refined.tum", std::ios::trunc);
+    ctx.refined_csv.open(dir / "refined.csv", std::ios::trunc);
+    ctx.refined_csv << "time,keyframe,cm_map\n";
+  }
+  if (!ctx.trajectory || !ctx.csv ||
+      (ctx.mapper != nullptr && (!ctx.odometry_tum || !ctx.refined_tum || !ctx.refined_csv))) {
     return fail({core::kExitIoError,
                  fmt::format("cannot write in '{}': {}", a.out_dir, std::strerror(errno))});
   }
@@ -148,6 +262,22 @@ int run_replay(const ReplayArgs& a) {
     r = report.value();
     warn_if_cut_short(r);
   }
+  if (ctx.mapper != nullptr) {
+    const auto m0 = std::chrono::steady_clock::now();
+    ctx.mapper->flush();
+    if (!ctx.mapper->refined().empty()) {
+      ctx.mapper_ms.push_back(
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - m0).count());
+    }
+    write_refined(ctx);
+    ctx.odometry_tum.close();
+    ctx.refined_tum.close();
+    ctx.refined_csv.close();
+    if (!a.save_map.empty()) {
+      if (auto err = slam::save_map_file(ctx.mapper->map(), a.save_map)) return fail(*err);
+      spdlog::info("map saved to '{}': {} voxels", a.save_map, ctx.mapper->map().size());
+    }
+  }
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   ctx.trajectory.close();
@@ -164,13 +294,17 @@ int run_replay(const ReplayArgs& a) {
       "{:.3f},\n  \"iterations_mean\": {:.3f},\n  \"heap_allocations_in_odometry\": {},\n  "
       "\"heap_allocations_counted_after_scan\": {},\n  \"peak_rss_mb\": {:.1f},\n  \"wall_s\": "
       "{:.3f},\n "
-      " \"mode\": \"{}\",\n  \"reference\": \"{}\"\n}}\n",
+      " \"mode\": \"{}\",\n  \"reference\": \"{}\",\n  \"mapper\": {},\n  \"keyframes\": {},\n  "
+      "\"mapper_ms_p50\": {:.3f},\n  \"mapper_ms_p99\": {:.3f},\n  \"map_voxels\": {},\n  "
+      "\"map_cm_median\": {:.4f}\n}}\n",
       ctx.scans, r.driver.decoded_packets, r.driver.rejected_total(), r.assembler.lost_packets,
       percentile(ctx.ms, 0.5), percentile(ctx.ms, 0.99),
       ctx.scans > 1 ? static_cast<double>(ctx.iterations) / static_cast<double>(ctx.scans - 1)
                     : 0.0,
       ctx.allocations, kWarmupScans, static_cast<double>(ru.ru_maxrss) / 1024.0, wall, a.mode,
-      a.reference);
+      a.reference, ctx.mapper != nullptr, ctx.mapper ? ctx.mapper->stats().keyframes : 0,
+      percentile(ctx.mapper_ms, 0.5), percentile(ctx.mapper_ms, 0.99),
+      ctx.mapper ? ctx.mapper->map().size() : 0, percentile(ctx.map_cm, 0.5));
   summary.close();
   if (ctx.scans == 0) {
     return fail({core::kExitDataError,

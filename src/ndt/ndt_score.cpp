@@ -72,6 +72,47 @@ void LookupCache::reset(std::size_t points) {
   indices_.assign(points * 7, -1);
 }
 
+namespace {
+
+// Voxel `idx` of `grid` when it has a Gaussian the mask enables, else nullptr.
+inline const Voxel* enabled_gaussian(const VoxelGrid& grid, std::int64_t idx, VoxelMask mask) {
+  const Voxel& vox = grid.voxels()[static_cast<std::size_t>(idx)];
+  if (!vox.has_gaussian || (mask != nullptr && (*mask)[static_cast<std::size_t>(idx)] == 0)) {
+    return nullptr;
+  }
+  return &vox;
+}
+
+// e = exp(-q^T A q / 2) for q = v - mu (eq 5's term without its sign), and a = A q.
+inline double gaussian_term(const Voxel& vox, const Eigen::Vector3d& v, Eigen::Vector3d& a) {
+  const Eigen::Vector3d q = v - vox.mean;
+  a = vox.inv_cov * q;
+  return std::exp(-0.5 * q.dot(a));
+}
+
+}  // namespace
+
+double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours neighbours,
+                   VoxelMask mask, Eigen::Vector3d* b, Eigen::Matrix3d* M) {
+  const VoxelKey key = grid.key_of(q);
+  double score = 0.0;
+  if (b != nullptr) b->setZero();
+  if (M != nullptr) M->setZero();
+  for (int n = 0; n < static_cast<int>(neighbours); ++n) {
+    const std::int64_t idx =
+        grid.index_of({key.x + kOffsets[n][0], key.y + kOffsets[n][1], key.z + kOffsets[n][2]});
+    if (idx < 0) continue;
+    const Voxel* vox = enabled_gaussian(grid, idx, mask);
+    if (vox == nullptr) continue;
+    Eigen::Vector3d a;
+    const double e = gaussian_term(*vox, q, a);
+    score -= e;  // eq 5
+    if (b != nullptr) *b += e * a;
+    if (M != nullptr) M->noalias() += e * (vox->inv_cov - a * a.transpose());
+  }
+  return score;
+}
+
 ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                       const core::Pose6& x, bool derivatives, VoxelMask mask, Neighbours neighbours,
                       LookupCache* cache) {
@@ -117,19 +158,16 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     for (int n = 0; n < lookups; ++n) {
       const std::int32_t idx = found[n];
       if (idx < 0) continue;
-      const Voxel& vox = grid.voxels()[static_cast<std::size_t>(idx)];
-      if (!vox.has_gaussian || (mask != nullptr && (*mask)[static_cast<std::size_t>(idx)] == 0)) {
-        continue;
-      }
-      const Eigen::Vector3d q = v - vox.mean;
-      const Eigen::Vector3d a = vox.inv_cov * q;
-      const double e = std::exp(-0.5 * q.dot(a));
+      const Voxel* vox = enabled_gaussian(grid, idx, mask);
+      if (vox == nullptr) continue;
+      Eigen::Vector3d a;
+      const double e = gaussian_term(*vox, v, a);
       r.score -= e;  // eq 5
       ++r.matched;
       any = true;
       if (!derivatives) continue;
       b += e * a;
-      M.noalias() += e * (vox.inv_cov - a * a.transpose());
+      M.noalias() += e * (vox->inv_cov - a * a.transpose());
     }
     if (!derivatives || !any) continue;
     // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]

@@ -32,14 +32,23 @@ std::uint32_t crc32(core::ByteSpan b) {
   return crc.checksum();
 }
 
+// Message text from parts (ostringstream: GCC 12 at -O3 warns falsely on chains of string +).
+template <class... Parts>
+std::string cat(const Parts&... parts) {
+  std::ostringstream s;
+  (s << ... << parts);
+  return s.str();
+}
+
 std::string hex(std::uint32_t v) {
   std::ostringstream s;
   s << "0x" << std::hex << v;
   return s.str();
 }
 
-core::Error corrupt(const std::string& name, const std::string& what) {
-  return {core::kExitDataError, name + ": " + what};
+template <class... Parts>
+core::Error corrupt(const std::string& name, const Parts&... what) {
+  return {core::kExitDataError, cat(name, ": ", what...)};
 }
 
 std::string errno_text() { return std::strerror(errno); }
@@ -93,34 +102,31 @@ core::Result<MapFileHeader> decode_map_header(core::ByteSpan b, const std::strin
     return corrupt(name, "not a cndt map file (it does not start with \"CNDTMAP\")");
   }
   if (b.size() < kMapHeaderBytes) {
-    return corrupt(name, "truncated in the header: " + std::to_string(b.size()) +
-                             " bytes, the header alone is " + std::to_string(kMapHeaderBytes));
+    return corrupt(name, "truncated in the header: ", b.size(), " bytes, the header alone is ",
+                   kMapHeaderBytes);
   }
   const std::uint32_t stored = core::load_le32(b, kOffHeaderCrc);
   const std::uint32_t computed = crc32(b.first(kOffHeaderCrc));
   if (stored != computed) {
-    return corrupt(name, "header checksum mismatch (bytes 0-" + std::to_string(kOffHeaderCrc - 1) +
-                             ": stored " + hex(stored) + ", computed " + hex(computed) +
-                             "): the header is corrupted");
+    return corrupt(name, "header checksum mismatch (bytes 0-", kOffHeaderCrc - 1, ": stored ",
+                   hex(stored), ", computed ", hex(computed), "): the header is corrupted");
   }
   MapFileHeader h;
   h.version = core::load_le32(b, kOffVersion);
   if (h.version != kMapFileVersion) {
-    return corrupt(name, "map file version " + std::to_string(h.version) +
-                             "; this build reads version " + std::to_string(kMapFileVersion));
+    return corrupt(name, "map file version ", h.version, "; this build reads version ",
+                   kMapFileVersion);
   }
   const std::uint32_t header_bytes = core::load_le32(b, kOffHeaderBytes);
   const std::uint32_t record_bytes = core::load_le32(b, kOffRecordBytes);
   if (header_bytes != kMapHeaderBytes || record_bytes != kMapRecordBytes) {
-    return corrupt(name, "header says " + std::to_string(header_bytes) + "-byte header and " +
-                             std::to_string(record_bytes) + "-byte records; version 1 has " +
-                             std::to_string(kMapHeaderBytes) + " and " +
-                             std::to_string(kMapRecordBytes));
+    return corrupt(name, "header says ", header_bytes, "-byte header and ", record_bytes,
+                   "-byte records; version 1 has ", kMapHeaderBytes, " and ", kMapRecordBytes);
   }
   h.voxel_size = core::load_le_f64(b, kOffVoxelSize);
   if (!std::isfinite(h.voxel_size) || h.voxel_size <= 0.0) {
-    return corrupt(name, "voxel size " + std::to_string(h.voxel_size) + " (byte " +
-                             std::to_string(kOffVoxelSize) + ") is not a positive length");
+    return corrupt(name, "voxel size ", h.voxel_size, " (byte ", kOffVoxelSize,
+                   ") is not a positive length");
   }
   for (int k = 0; k < 3; ++k) {
     h.origin(k) = core::load_le_f64(b, kOffOrigin + 8 * static_cast<std::size_t>(k));
@@ -139,32 +145,29 @@ core::Result<NdtMap> decode_map(core::ByteSpan b, const std::string& name, const
       (std::numeric_limits<std::uint64_t>::max() - kMapHeaderBytes - kMapTrailerBytes) /
       kMapRecordBytes;
   if (h.voxels > kMaxVoxels) {
-    return corrupt(name, "header claims " + std::to_string(h.voxels) + " voxels");
+    return corrupt(name, "header claims ", h.voxels, " voxels");
   }
   const std::uint64_t expected = kMapHeaderBytes + h.voxels * kMapRecordBytes + kMapTrailerBytes;
   if (b.size() != expected) {
-    return corrupt(name, std::string(b.size() < expected ? "truncated" : "trailing bytes") +
-                             ": the file is " + std::to_string(b.size()) + " bytes, the header's " +
-                             std::to_string(h.voxels) + " voxels make " + std::to_string(expected));
+    return corrupt(name, (b.size() < expected ? "truncated" : "trailing bytes"), ": the file is ",
+                   b.size(), " bytes, the header's ", h.voxels, " voxels make ", expected);
   }
   if (!std::equal(std::begin(kEndMagic), std::end(kEndMagic), b.end() - kMapTrailerBytes)) {
-    return corrupt(name, "the trailer (byte " + std::to_string(expected - kMapTrailerBytes) +
-                             ") is not \"CNDTEND\": the file is damaged at its end");
+    return corrupt(name, "the trailer (byte ", expected - kMapTrailerBytes,
+                   ") is not \"CNDTEND\": the file is damaged at its end");
   }
   const core::ByteSpan body = b.subspan(kMapHeaderBytes, h.voxels * kMapRecordBytes);
   const std::uint32_t stored = core::load_le32(b, kOffBodyCrc);
   const std::uint32_t computed = crc32(body);
   if (stored != computed) {
-    return corrupt(
-        name, "voxel records checksum mismatch (bytes " + std::to_string(kMapHeaderBytes) + "-" +
-                  std::to_string(kMapHeaderBytes + body.size() - 1) + ": stored " + hex(stored) +
-                  ", computed " + hex(computed) + "): the records are corrupted");
+    return corrupt(name, "voxel records checksum mismatch (bytes ", kMapHeaderBytes, "-",
+                   kMapHeaderBytes + body.size() - 1, ": stored ", hex(stored), ", computed ",
+                   hex(computed), "): the records are corrupted");
   }
   if (h.voxels > base.capacity) {
     return core::Error{core::kExitConfigError,
-                       name + ": the map holds " + std::to_string(h.voxels) +
-                           " voxels, more than the configured capacity of " +
-                           std::to_string(base.capacity)};
+                       cat(name, ": the map holds ", h.voxels,
+                           " voxels, more than the configured capacity of ", base.capacity)};
   }
   MapOptions o = base;
   o.voxel_size = h.voxel_size;
@@ -173,8 +176,8 @@ core::Result<NdtMap> decode_map(core::ByteSpan b, const std::string& name, const
   std::uint64_t points = 0;
   for (std::uint64_t i = 0; i < h.voxels; ++i) {
     const core::ByteSpan r = body.subspan(i * kMapRecordBytes, kMapRecordBytes);
-    const std::string where = "voxel record " + std::to_string(i) + " (byte " +
-                              std::to_string(kMapHeaderBytes + i * kMapRecordBytes) + ")";
+    const std::string where =
+        cat("voxel record ", i, " (byte ", kMapHeaderBytes + i * kMapRecordBytes, ")");
     const ndt::VoxelKey key{static_cast<std::int32_t>(core::load_le32(r, kRecKey)),
                             static_cast<std::int32_t>(core::load_le32(r, kRecKey + 4)),
                             static_cast<std::int32_t>(core::load_le32(r, kRecKey + 8))};
@@ -189,20 +192,17 @@ core::Result<NdtMap> decode_map(core::ByteSpan b, const std::string& name, const
     Eigen::Matrix3d sum_outer;
     sum_outer << outer[0], outer[1], outer[2], outer[1], outer[3], outer[4], outer[2], outer[4],
         outer[5];
-    if (count == 0) return corrupt(name, where + " holds no points");
+    if (count == 0) return corrupt(name, where, " holds no points");
     if (!sum.allFinite() || !sum_outer.allFinite() || !std::isfinite(consensus)) {
-      return corrupt(name, where + " holds a value that is not finite");
+      return corrupt(name, where, " holds a value that is not finite");
     }
     if (!map.grid().restore(key, count, sum, sum_outer, consensus)) {
-      return corrupt(name, where + ": voxel (" + std::to_string(key.x) + ", " +
-                               std::to_string(key.y) + ", " + std::to_string(key.z) +
-                               ") appears twice");
+      return corrupt(name, where, ": voxel (", key.x, ", ", key.y, ", ", key.z, ") appears twice");
     }
     points += count;
   }
   if (points != h.points) {
-    return corrupt(name, "the records hold " + std::to_string(points) +
-                             " points, the header says " + std::to_string(h.points));
+    return corrupt(name, "the records hold ", points, " points, the header says ", h.points);
   }
   map.finalize();
   return map;
@@ -212,7 +212,7 @@ std::optional<core::Error> save_map_file(const NdtMap& map, const std::string& p
   const std::vector<std::uint8_t> bytes = encode_map(map);
   const std::string tmp = path + ".tmp";
   auto io_error = [&](const std::string& what, const std::string& file) {
-    return core::Error{core::kExitIoError, file + ": " + what + ": " + errno_text()};
+    return core::Error{core::kExitIoError, cat(file, ": ", what, ": ", errno_text())};
   };
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return io_error("cannot create", tmp);
@@ -240,14 +240,14 @@ std::optional<core::Error> save_map_file(const NdtMap& map, const std::string& p
     return e;
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const auto e = io_error("cannot rename " + tmp + " to it", path);
+    const auto e = io_error(cat("cannot rename ", tmp, " to it"), path);
     ::unlink(tmp.c_str());
     return e;
   }
   // The rename is durable once the folder's entry is on disk.
-  std::string dir = std::filesystem::path(path).parent_path().string();
-  if (dir.empty()) dir = ".";
-  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  std::error_code ec;
+  const std::filesystem::path dir = std::filesystem::absolute(path, ec).parent_path();
+  const int dfd = ec ? -1 : ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
     ::fsync(dfd);
     ::close(dfd);

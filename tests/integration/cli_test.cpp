@@ -281,3 +281,53 @@ TEST(CliMap, InfoAndExportsAgreeAndTheExportsParseBack) {
 }
 
 }  // namespace
+
+namespace {
+
+int lines(const std::string& path) {
+  std::ifstream in(path);
+  int n = 0;
+  for (std::string l; std::getline(in, l);) ++n;
+  return n;
+}
+
+TEST(CliReplay, MapperSavesAMapThatASecondReplayLocalizesIn) {
+  cndt::test::TempDir dir;
+  CliRun r = run("sim --scene street --duration 2 --out " + dir.file("s"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("replay " + dir.file("s/capture.pcap") + " --out " + dir.file("a") + " --save-map " +
+          dir.file("a.cndtmap"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const int poses = lines(dir.file("a/trajectory.tum"));
+  EXPECT_GE(poses, 18);
+  EXPECT_EQ(lines(dir.file("a/odometry.tum")), poses);
+  EXPECT_EQ(lines(dir.file("a/refined.tum")), poses);  // every scan, once its keyframe closed
+  EXPECT_EQ(lines(dir.file("a/refined.csv")), poses + 1);
+  std::stringstream summary;
+  summary << std::ifstream(dir.file("a/summary.json")).rdbuf();
+  EXPECT_NE(summary.str().find("\"mapper\": true"), std::string::npos) << summary.str();
+  const CliRun info = run("map info " + dir.file("a.cndtmap"));
+  ASSERT_EQ(info.code, 0) << info.output;
+  EXPECT_GT(field(info.output, "voxels with a Gaussian"), 5000u);
+
+  // The same capture localized in that map, frozen, from a given start pose.
+  r = run("replay " + dir.file("s/capture.pcap") + " --out " + dir.file("b") + " --map " +
+          dir.file("a.cndtmap") + " --initial-pose 0,0,0,0,0,0");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("localizing in"), std::string::npos) << r.output;
+  EXPECT_EQ(lines(dir.file("b/refined.tum")), poses);
+  const CliRun info2 = run("map info " + dir.file("a.cndtmap"));
+  EXPECT_EQ(info2.output, info.output);  // a frozen map is not written
+
+  // Bad input: a pose that is not six numbers, a map that is not a map.
+  r = run("replay " + dir.file("s/capture.pcap") + " --out " + dir.file("c") + " --map " +
+          dir.file("a.cndtmap") + " --initial-pose 1,2,3");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--initial-pose '1,2,3'"), std::string::npos) << r.output;
+  r = run("replay " + dir.file("s/capture.pcap") + " --out " + dir.file("c") + " --map " +
+          dir.file("s/groundtruth.tum"));
+  EXPECT_EQ(r.code, 65);
+  EXPECT_NE(r.output.find("not a cndt map file"), std::string::npos) << r.output;
+}
+
+}  // namespace

@@ -77,6 +77,11 @@ struct ReplayArgs {
   std::string reference = "local-map";
   std::size_t max_scans = 0;
   double scan_period_s = 0.1;
+  bool mapper = false;
+  std::string map;  ///< prior map to localize in
+  std::string map_mode = "frozen";
+  std::string initial_pose;  ///< x,y,z,roll,pitch,yaw of the first scan in the map frame
+  std::string save_map;
   CaptureArgs capture_args;
 };
 void register_replay(CLI::App& app, ReplayArgs& args);

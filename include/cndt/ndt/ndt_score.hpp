@@ -80,6 +80,13 @@ class LookupCache {
   std::vector<std::int32_t> indices_;  // 7 per point: the voxels around keys_[i], -1 none
 };
 
+/// One point's share of S at q (grid frame): -sum e_v over the enabled Gaussians of the voxels
+/// `neighbours` selects around q, with e_v = exp(-q_v^T A_v q_v / 2), q_v = q - mu_v. With `b`
+/// and `M`, also dS/dq = sum e_v A_v q_v and d2S/dq2 = sum e_v (A_v - A_v q_v q_v^T A_v), from
+/// which a caller builds the derivatives for its own pose parametrisation (the mapper's).
+double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours neighbours,
+                   VoxelMask mask, Eigen::Vector3d* b = nullptr, Eigen::Matrix3d* M = nullptr);
+
 /// S(x) for `points` (sensor frame) against `grid`; with `derivatives`, also its gradient and
 /// Hessian. Each point adds one term per Gaussian of the voxels `neighbours` selects. A cache
 /// saves voxel lookups across calls on the same grid.

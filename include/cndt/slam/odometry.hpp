@@ -104,6 +104,10 @@ class ConsensusOdometry {
   explicit ConsensusOdometry(const OdometryOptions& options);
   OdometryResult process(const core::Scan& scan);
   [[nodiscard]] const OdometryOptions& options() const { return options_; }
+  /// The last processed scan's points (downsampled to map_cell, deskewed with the final motion
+  /// estimate), in the sensor frame at its stamp: what the mapper takes. Stale after a skipped
+  /// scan.
+  [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const { return cv_points_; }
 
  private:
   // Deskews `in` (sensor frame, timed) with `motion` over `period_s` into `out`: every point
