@@ -200,6 +200,7 @@ int run_replay(const ReplayArgs& a) {
   slam::MapperOptions mo;
   mo.max_scan_points = oo.max_scan_points;
   mo.eta = oo.eta;
+  mo.point_cell = oo.map_cell;
 
   std::optional<slam::Mapper> mapper;
   if (a.mapper || !a.map.empty() || !a.save_map.empty()) {

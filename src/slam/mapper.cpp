@@ -28,6 +28,7 @@ Eigen::Isometry3d retract(const Eigen::Isometry3d& T, const Eigen::Matrix<double
 // Degrees of freedom the chi-square table needs: test points of up to `scans` scans, each
 // downsampled to `cell`, in one voxel of edge L (see cv_dof_capacity()).
 std::size_t dof_capacity(double voxel, double cell, std::size_t scans) {
+  if (!(cell > 0.0)) return 1'000'000;
   const double per_axis = std::ceil((voxel + 2.0 * std::sqrt(3.0) * cell) / cell);
   return static_cast<std::size_t>(per_axis * per_axis * per_axis) * std::max<std::size_t>(1, scans);
 }
@@ -46,7 +47,7 @@ Mapper::Mapper(const MapperOptions& o)
       map_(o.map),
       first_occupancy_({o.similarity_voxel, o.scan_voxels, 1, 0.001, false}),
       occupancy_({o.similarity_voxel, o.scan_voxels, 1, 0.001, false}),
-      chi2_(dof_capacity(o.map.voxel_size, std::min(o.test_cell, 0.1), o.keyframe_scans)),
+      chi2_(dof_capacity(o.map.voxel_size, std::min(o.test_cell, o.point_cell), o.keyframe_scans)),
       test_sampler_(o.test_cell, o.max_scan_points) {
   scans_.reserve(std::max<std::size_t>(1, o.keyframe_scans));
   for (std::size_t i = 0; i < std::max<std::size_t>(1, o.keyframe_scans); ++i) {
@@ -56,7 +57,6 @@ Mapper::Mapper(const MapperOptions& o)
   cv_.reserve(std::max(o.map.capacity, o.scan_voxels));
   residuals_.count.reserve(std::max(o.map.capacity, o.scan_voxels));
   residuals_.rss.reserve(std::max(o.map.capacity, o.scan_voxels));
-  scratch_.reserve(o.max_scan_points);
   refined_.reserve(scans_.size());
 }
 

@@ -24,8 +24,11 @@ struct MapperOptions {
   /// A keyframe closes when the current scan's similarity to its first scan (voxels occupied in
   /// both over voxels occupied in either, on a similarity_voxel grid) falls below this.
   double keyframe_similarity = 0.5;
-  double similarity_voxel = 1.0;          ///< m
-  double test_cell = 0.5;                 ///< downsampling of a scan's points scored in eq 7, m
+  double similarity_voxel = 1.0;  ///< m
+  double test_cell = 0.5;         ///< downsampling of a scan's points scored in eq 7, m
+  /// Cell the points handed to add() were downsampled to (the odometry's map_cell), m: bounds
+  /// the points one voxel can hold, so the chi-square table's size.
+  double point_cell = 0.1;
   std::size_t max_scan_points = 150'000;  ///< points a scan brings at most
   std::size_t scan_voxels = 60'000;       ///< capacity of each keyframe scan's own NDT
   double eta = 0.7;        ///< Cv threshold for the voxels eq 7 uses and the map takes
@@ -116,9 +119,7 @@ class Mapper {
   ndt::VoxelResiduals residuals_;
   std::vector<double> cv_;
   Downsampler test_sampler_;
-  std::vector<Eigen::Vector3d> scratch_;
   Eigen::Isometry3d T_map_odom_ = Eigen::Isometry3d::Identity();
-  bool map_fixed_origin_ = false;  // the map holds data: no pose is held fixed in refinement
   std::vector<RefinedPose> refined_;
   MapperStats stats_;
   Eigen::Vector3d last_evict_ = Eigen::Vector3d::Constant(1e300);
