@@ -201,22 +201,21 @@ int run_replay(const ReplayArgs& a) {
   mo.max_scan_points = oo.max_scan_points;
   mo.eta = oo.eta;
   mo.point_cell = oo.map_cell;
-
+  mo.update_map = a.map.empty() || a.map_mode == "update";
   std::optional<slam::Mapper> mapper;
   if (a.mapper || !a.map.empty() || !a.save_map.empty()) {
+    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+    if (!a.initial_pose.empty()) {
+      auto pose = parse_pose(a.initial_pose);
+      if (!pose) return fail(pose.error());
+      start = pose.value();
+    }
     mapper.emplace(mo);
     if (!a.map.empty()) {
-      Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
-      if (!a.initial_pose.empty()) {
-        auto pose = parse_pose(a.initial_pose);
-        if (!pose) return fail(pose.error());
-        start = pose.value();
-      }
       auto prior = slam::load_map_file(a.map, mo.map);
       if (!prior) return fail(prior.error());
-      spdlog::info("localizing in '{}': {} voxels", a.map, prior.value().size());
-      mo.update_map = a.map_mode == "update";
-      mapper.emplace(mo);
+      spdlog::info("localizing in '{}' ({} map): {} voxels", a.map, a.map_mode,
+                   prior.value().size());
       mapper->start_from(std::move(prior.value()), start);
     }
     ctx.mapper = &*mapper;
