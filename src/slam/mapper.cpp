@@ -154,7 +154,7 @@ double Mapper::total_score(const std::vector<Eigen::Isometry3d>& poses) const {
         s += ndt::point_terms(map_.grid(), poses[l] * p, options_.map_neighbours, &map_mask_);
       }
     }
-    for (std::size_t m = 0; m < k; ++m) {
+    for (std::size_t m = 0; m < k && options_.pair_terms; ++m) {
       if (m == l) continue;
       const Eigen::Isometry3d T_lm = poses[l].inverse() * poses[m];
       for (const auto& p : scans_[m].test) {
@@ -193,7 +193,7 @@ void Mapper::linearize(const std::vector<Eigen::Isometry3d>& poses, std::size_t 
         g.segment<6>(block(l)).noalias() += Jl.transpose() * b;
       }
     }
-    for (std::size_t m = 0; m < k; ++m) {
+    for (std::size_t m = 0; m < k && options_.pair_terms; ++m) {
       if (m == l) continue;
       const bool m_free = m >= first_free;
       if (!l_free && !m_free) continue;

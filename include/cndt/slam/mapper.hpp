@@ -37,6 +37,9 @@ struct MapperOptions {
   /// six neighbours (a wider basin); between the keyframe's scans, k (k - 1) terms, the voxel it
   /// falls in (the paper's choice, seven times cheaper).
   ndt::Neighbours map_neighbours = ndt::Neighbours::kSeven;
+  /// Eq 7's second sum, every scan against every other scan of the keyframe; without it each
+  /// scan is refined against the map alone.
+  bool pair_terms = true;
   ndt::Neighbours pair_neighbours = ndt::Neighbours::kOne;
   /// False: the map is not changed (localisation in a frozen prior map); only the poses are
   /// refined against it.
