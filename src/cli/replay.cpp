@@ -182,6 +182,12 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
       ->needs(map);
   cmd->add_option("--save-map", a.save_map,
                   "Write the map here at the end (atomically; see docs/map_format.md)");
+  cmd->add_option("--map-window", a.map_window_m,
+                  "With the mapper: keep only map voxels within this many metres (horizontally) "
+                  "of the vehicle, so that memory stays bounded on long runs; 0 keeps the whole "
+                  "map")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e5));
   add_capture_options(*cmd, a.capture_args);
 }
 
@@ -201,6 +207,7 @@ int run_replay(const ReplayArgs& a) {
   mo.max_scan_points = oo.max_scan_points;
   mo.eta = oo.eta;
   mo.point_cell = oo.map_cell;
+  mo.map.window_radius = a.map_window_m;
   mo.update_map = a.map.empty() || a.map_mode == "update";
   std::optional<slam::Mapper> mapper;
   if (a.mapper || !a.map.empty() || !a.save_map.empty()) {

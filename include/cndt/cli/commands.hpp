@@ -82,6 +82,7 @@ struct ReplayArgs {
   std::string map_mode = "frozen";
   std::string initial_pose;  ///< x,y,z,roll,pitch,yaw of the first scan in the map frame
   std::string save_map;
+  double map_window_m = 0.0;  ///< evict map voxels farther than this from the vehicle; 0 keeps all
   CaptureArgs capture_args;
 };
 void register_replay(CLI::App& app, ReplayArgs& args);

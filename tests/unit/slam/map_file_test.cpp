@@ -200,15 +200,18 @@ TEST(MapFile, SavesAndLoadsFilesWithClearErrors) {
 }
 
 TEST(MapFile, AKilledSaveLeavesThePreviousFile) {
-  // A child saves two different maps over one path in a loop; it is killed with SIGKILL at
-  // random moments. Every time, the file must load and be one of the two maps, whole.
+  // A child saves two different maps over one path in a loop; it is killed with SIGKILL as soon
+  // as its temporary file shows up (mid-write), or at a random moment. Every time, the file
+  // must load and be one of the two maps, whole.
   const test::TempDir dir;
   const std::string path = dir.file("k.cndtmap");
-  const NdtMap a = random_map(150'000, 6), b = random_map(120'000, 7);
+  const NdtMap a = random_map(60'000, 6), b = random_map(50'000, 7);
+  ASSERT_NE(a.size(), b.size());
   ASSERT_FALSE(save_map_file(a, path));
   std::mt19937 rng(8);
   int killed_mid_write = 0;
-  for (int round = 0; round < 12; ++round) {
+  for (int round = 0; round < 8; ++round) {
+    std::filesystem::remove(path + ".tmp");  // left by the previous kill
     const pid_t child = ::fork();
     ASSERT_GE(child, 0);
     if (child == 0) {
@@ -216,7 +219,15 @@ TEST(MapFile, AKilledSaveLeavesThePreviousFile) {
         if (save_map_file(i % 2 == 0 ? b : a, path)) ::_exit(3);
       }
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20 + rng() % 80));
+    if (round % 2 == 0) {  // wait for a temporary file, then kill at once
+      const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      while (!std::filesystem::exists(path + ".tmp") &&
+             std::chrono::steady_clock::now() < give_up) {
+        std::this_thread::sleep_for(std::chrono::microseconds(50));
+      }
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20 + rng() % 80));
+    }
     ::kill(child, SIGKILL);
     int status = 0;
     ::waitpid(child, &status, 0);
