@@ -7,6 +7,13 @@
 
 namespace cndt::slam {
 
+std::size_t max_centroids_per_voxel(double voxel, double cell, std::size_t limit) {
+  if (!(cell > 0.0)) return limit;
+  const double per_axis = std::ceil((voxel + 2.0 * std::sqrt(3.0) * cell) / cell);
+  const double cells = per_axis * per_axis * per_axis;
+  return cells >= static_cast<double>(limit) ? limit : static_cast<std::size_t>(cells);
+}
+
 Downsampler::Downsampler(double cell, std::size_t capacity)
     : inv_cell_(1.0 / cell), capacity_(capacity) {
   cells_.reserve(capacity);

@@ -26,11 +26,9 @@ Eigen::Isometry3d retract(const Eigen::Isometry3d& T, const Eigen::Matrix<double
 }
 
 // Degrees of freedom the chi-square table needs: test points of up to `scans` scans, each
-// downsampled to `cell`, in one voxel of edge L (see cv_dof_capacity()).
+// downsampled to `cell`, in one voxel of edge L.
 std::size_t dof_capacity(double voxel, double cell, std::size_t scans) {
-  if (!(cell > 0.0)) return 1'000'000;
-  const double per_axis = std::ceil((voxel + 2.0 * std::sqrt(3.0) * cell) / cell);
-  return static_cast<std::size_t>(per_axis * per_axis * per_axis) * std::max<std::size_t>(1, scans);
+  return max_centroids_per_voxel(voxel, cell, 1'000'000) * std::max<std::size_t>(1, scans);
 }
 
 }  // namespace

@@ -20,15 +20,8 @@ bool finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 }  // namespace
 
 std::size_t cv_dof_capacity(const OdometryOptions& o) {
-  // The Cv points are centroids of map_cell cells of the sensor frame, one per cell. A voxel of
-  // edge L, in any orientation to those cells, lies within ((L + 2 sqrt(3) cell) / cell)^3 cell
-  // volumes of them (the cells it meets fit in the voxel grown by a cell diagonal each way).
-  if (!(o.map_cell > 0.0)) return o.max_scan_points;
-  const double per_axis =
-      std::ceil((o.voxel_size + 2.0 * std::sqrt(3.0) * o.map_cell) / o.map_cell);
-  const double cells = per_axis * per_axis * per_axis;
-  return cells >= static_cast<double>(o.max_scan_points) ? o.max_scan_points
-                                                         : static_cast<std::size_t>(cells);
+  // The Cv points are map_cell centroids.
+  return max_centroids_per_voxel(o.voxel_size, o.map_cell, o.max_scan_points);
 }
 
 ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)

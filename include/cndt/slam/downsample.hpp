@@ -14,6 +14,11 @@ struct TimedPoint {
   double t = 0.0;
 };
 
+/// Most centroids of `cell` downsampling (one per cell) that a cube of edge `voxel` can hold, in
+/// any orientation to the cells: the cells it meets fit in the cube grown by a cell diagonal each
+/// way, ((voxel + 2 sqrt(3) cell) / cell)^3. `limit` when that is larger or cell is not positive.
+std::size_t max_centroids_per_voxel(double voxel, double cell, std::size_t limit);
+
 class Downsampler {
  public:
   /// `cell` metres; at most `capacity` output points (further cells are dropped and counted).
