@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   cndt::cli::ReplayArgs replay;
   cndt::cli::EvalArgs eval;
   cndt::cli::MapArgs map;
+  cndt::cli::ListenArgs listen;
   cndt::cli::register_info(app, info);
   cndt::cli::register_decode(app, decode);
   cndt::cli::register_sim(app, sim);
@@ -32,6 +33,7 @@ int main(int argc, char** argv) {
   cndt::cli::register_replay(app, replay);
   cndt::cli::register_eval(app, eval);
   cndt::cli::register_map(app, map);
+  cndt::cli::register_listen(app, listen);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -46,5 +48,6 @@ int main(int argc, char** argv) {
   if (app.got_subcommand("replay")) return cndt::cli::run_replay(replay);
   if (app.got_subcommand("eval")) return cndt::cli::run_eval(eval);
   if (app.got_subcommand("map")) return cndt::cli::run_map(map);
+  if (app.got_subcommand("listen")) return cndt::cli::run_listen(listen);
   return cndt::core::kExitUsage;
 }

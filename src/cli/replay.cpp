@@ -13,6 +13,7 @@
 #include "cndt/cli/alloc_counter.hpp"
 #include "cndt/cli/cloud_io.hpp"
 #include "cndt/cli/commands.hpp"
+#include "cndt/runtime/publisher.hpp"
 #include "cndt/slam/map_file.hpp"
 #include "cndt/slam/mapper.hpp"
 #include "cndt/slam/odometry.hpp"
@@ -25,6 +26,7 @@ constexpr std::size_t kWarmupScans = 20;  // buffers reach their working size by
 struct ReplayContext {
   slam::ConsensusOdometry* odometry = nullptr;
   slam::Mapper* mapper = nullptr;  // null: odometry only
+  runtime::PosePublisher* publisher = nullptr;
   std::ofstream trajectory, csv;
   std::ofstream odometry_tum, refined_tum, refined_csv;  // with the mapper
   std::vector<double> map_cm;                            // Cm against the map, per refined scan
@@ -98,6 +100,7 @@ void on_scan(const core::Scan& scan, void* user) {
   const std::int64_t ns = r.stamp.count();
   // A skipped scan has no pose; its line in the per-scan table says why.
   if ((r.flags & slam::kOdomSkipped) == 0) {
+    Eigen::Isometry3d published = r.pose;
     if (c.mapper == nullptr) {
       write_tum(c.trajectory, static_cast<double>(ns) * 1e-9, r.pose);
     } else {
@@ -113,8 +116,12 @@ void on_scan(const core::Scan& scan, void* user) {
         }
       }
       write_tum(c.odometry_tum, static_cast<double>(ns) * 1e-9, r.pose);
-      write_tum(c.trajectory, static_cast<double>(ns) * 1e-9, c.mapper->correction() * r.pose);
+      published = c.mapper->correction() * r.pose;
+      write_tum(c.trajectory, static_cast<double>(ns) * 1e-9, published);
     }
+    c.publisher->publish(runtime::make_pose_message(r, published, c.mapper != nullptr,
+                                                    static_cast<std::uint32_t>(scan.sequence),
+                                                    c.publisher->options()));
   }
   c.csv << fmt::format("{}.{:09d},{:.6f},{},{},{},{},{},{},{:.3f},{}\n", ns / 1'000'000'000,
                        ns % 1'000'000'000, r.cm, r.coarse_iterations, r.fine_iterations,
@@ -139,7 +146,8 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
       "Run consensus-NDT odometry over a capture and write trajectory.tum (time x y z "
       "qx qy qz qw: the sensor pose at each scan start), scans.csv (per scan: time, "
       "Cm, iterations, voxels before/after the Cv cut, points, milliseconds, flags) "
-      "and summary.json");
+      "summary.json and can.log (every CAN frame cndtd would send, candump format; "
+      "config/cndt.dbc describes them)");
   cmd->add_option("capture", a.capture,
                   "pcap or pcapng file, or a folder of clouds (KITTI .bin or PCD, in name "
                   "order; scan times from its times.txt if present, else --scan-period apart)")
@@ -188,7 +196,35 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
                   "map")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e5));
+  cmd->add_option("--udp-out", a.udp_out,
+                  "Also send every pose as a UDP datagram (docs/protocol.md) to ADDRESS:PORT, "
+                  "e.g. 127.0.0.1:5600 (see cndt listen --udp)");
   add_capture_options(*cmd, a.capture_args);
+}
+
+core::Result<std::pair<std::string, std::uint16_t>> parse_endpoint(const std::string& text,
+                                                                   const std::string& what) {
+  const auto colon = text.rfind(':');
+  std::string host = colon == std::string::npos ? "" : text.substr(0, colon);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') {
+    host = host.substr(1, host.size() - 2);
+  }
+  unsigned long port = 0;
+  try {
+    std::size_t used = 0;
+    const std::string p = colon == std::string::npos ? "" : text.substr(colon + 1);
+    port = std::stoul(p, &used);
+    if (used != p.size()) port = 0;
+  } catch (const std::exception&) {
+    port = 0;
+  }
+  if (host.empty() || port == 0 || port > 65535) {
+    return core::Error{core::kExitUsage,
+                       fmt::format("{} '{}': expected ADDRESS:PORT (e.g. 127.0.0.1:5600, "
+                                   "[::1]:5600)",
+                                   what, text)};
+  }
+  return std::pair<std::string, std::uint16_t>{host, static_cast<std::uint16_t>(port)};
 }
 
 int run_replay(const ReplayArgs& a) {
@@ -229,6 +265,20 @@ int run_replay(const ReplayArgs& a) {
   }
   ctx.max_scans = a.max_scans;
   const std::filesystem::path dir(a.out_dir);
+  runtime::PosePublisher publisher{runtime::PublisherOptions{}};
+  {
+    auto log = can::open_candump_log((dir / "can.log").string(), "can0");
+    if (!log) return fail(log.error());
+    publisher.add_can(std::move(log.value()));
+  }
+  if (!a.udp_out.empty()) {
+    auto ep = parse_endpoint(a.udp_out, "--udp-out");
+    if (!ep) return fail(ep.error());
+    auto udp = net::UdpSender::open(ep.value().first, ep.value().second);
+    if (!udp) return fail(udp.error());
+    publisher.add_udp(std::move(udp.value()));
+  }
+  ctx.publisher = &publisher;
   ctx.trajectory.open(dir / "trajectory.tum", std::ios::trunc);
   ctx.csv.open(dir / "scans.csv", std::ios::trunc);
   if (ctx.mapper != nullptr) {
@@ -283,6 +333,20 @@ int run_replay(const ReplayArgs& a) {
     if (!a.save_map.empty()) {
       if (auto err = slam::save_map_file(ctx.mapper->map(), a.save_map)) return fail(*err);
       spdlog::info("map saved to '{}': {} voxels", a.save_map, ctx.mapper->map().size());
+    }
+  }
+  publisher.flush();
+  for (const auto& bus : publisher.can_buses()) {
+    if (bus->stats().errors > 0) {
+      return fail({core::kExitIoError, fmt::format("{}: {} frames could not be written",
+                                                   bus->describe(), bus->stats().errors)});
+    }
+  }
+  for (const auto& udp : publisher.udp_senders()) {
+    const auto st = udp->stats();
+    if (st.dropped_would_block + st.errors > 0) {
+      spdlog::warn("{}: {} datagrams sent, {} dropped (socket full), {} failed", udp->describe(),
+                   st.sent, st.dropped_would_block, st.errors);
     }
   }
   const double wall =

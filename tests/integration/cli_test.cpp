@@ -1,7 +1,6 @@
 // The cndt binary on bad input: one clear error line naming the file, and the documented exit
 // code; never a crash or a silent empty result.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
@@ -14,27 +13,13 @@
 #include "cndt/cli/cloud_io.hpp"
 #include "cndt/core/bytes.hpp"
 #include "cndt/slam/map_file.hpp"
+#include "cli_run.hpp"
 #include "temp_dir.hpp"
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string output;
-};
-
-CliRun run(const std::string& args) {
-  const std::string cmd = std::string(CNDT_BINARY) + " " + args + " 2>&1";
-  CliRun r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buf{};
-  while (std::fgets(buf.data(), static_cast<int>(buf.size()), pipe) != nullptr)
-    r.output += buf.data();
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
+using cndt::test::CliRun;
+using cndt::test::run;
 
 int error_lines(const std::string& out) {
   std::istringstream in(out);

@@ -18,6 +18,10 @@ std::optional<core::Error> create_output_dir(const std::string& dir);
 /// Logs one warning when the capture ended in the middle of a record.
 void warn_if_cut_short(const CaptureReport& report);
 
+/// "ADDRESS:PORT" ("[v6]:PORT" for IPv6) split into its parts; the error names `what`.
+core::Result<std::pair<std::string, std::uint16_t>> parse_endpoint(const std::string& text,
+                                                                   const std::string& what);
+
 /// Capture-reading options shared by info, decode and (later) replay.
 struct CaptureArgs {
   std::string model = "auto";
@@ -83,6 +87,7 @@ struct ReplayArgs {
   std::string initial_pose;  ///< x,y,z,roll,pitch,yaw of the first scan in the map frame
   std::string save_map;
   double map_window_m = 0.0;  ///< evict map voxels farther than this from the vehicle; 0 keeps all
+  std::string udp_out;        ///< also send every pose as a UDP datagram to ADDRESS:PORT
   CaptureArgs capture_args;
 };
 void register_replay(CLI::App& app, ReplayArgs& args);
@@ -103,6 +108,19 @@ struct MapArgs {
 };
 void register_map(CLI::App& app, MapArgs& args);
 int run_map(const MapArgs& args);
+
+struct ListenArgs {
+  std::uint16_t udp_port = 0;  ///< 0: not listening on UDP
+  std::string bind_address = "0.0.0.0";
+  std::string candump;  ///< a candump log to decode instead
+  std::string dbc;      ///< decode CAN frames with this DBC instead of the built-in layout
+  std::uint32_t base_id = 0x300;
+  std::uint64_t count = 0;  ///< stop after this many datagrams (0: no limit)
+  double timeout_s = 0.0;   ///< stop after this long without a datagram (0: never)
+  std::string out;          ///< write the lines here instead of stdout
+};
+void register_listen(CLI::App& app, ListenArgs& args);
+int run_listen(const ListenArgs& args);
 
 struct RecordArgs {
   std::string out;

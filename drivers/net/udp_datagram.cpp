@@ -1,0 +1,125 @@
+#include "cndt/net/udp_datagram.hpp"
+
+#include <fmt/format.h>
+#include <poll.h>
+
+#include "asio.hpp"
+
+namespace cndt::net {
+
+using boost::asio::ip::udp;
+
+struct UdpSender::Impl {
+  boost::asio::io_context io;
+  udp::socket socket{io};
+  udp::endpoint destination;
+  UdpSenderStats stats;
+};
+
+core::Result<std::unique_ptr<UdpSender>> UdpSender::open(const std::string& address,
+                                                         std::uint16_t port) {
+  boost::system::error_code ec;
+  const auto ip = boost::asio::ip::make_address(address, ec);
+  if (ec) {
+    return core::Error{core::kExitConfigError,
+                       fmt::format("UDP output address '{}' is not a numeric IPv4/IPv6 address",
+                                   address)};
+  }
+  if (port == 0) {
+    return core::Error{core::kExitConfigError,
+                       fmt::format("UDP output port 0 for '{}': give the receiver's port", address)};
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->destination = udp::endpoint(ip, port);
+  impl->socket.open(impl->destination.protocol(), ec);
+  if (!ec && ip.is_v4() && ip.to_v4() == boost::asio::ip::address_v4::broadcast()) {
+    impl->socket.set_option(boost::asio::socket_base::broadcast(true), ec);
+  }
+  if (!ec) impl->socket.non_blocking(true, ec);
+  if (ec) {
+    return core::Error{core::kExitIoError, fmt::format("cannot open a UDP socket to {}:{}: {}",
+                                                       address, port, ec.message())};
+  }
+  return std::unique_ptr<UdpSender>(new UdpSender(std::move(impl)));
+}
+
+UdpSender::UdpSender(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+UdpSender::~UdpSender() = default;
+
+bool UdpSender::send(core::ByteSpan datagram) noexcept {
+  boost::system::error_code ec;
+  impl_->socket.send_to(boost::asio::buffer(datagram.data(), datagram.size()),
+                        impl_->destination, 0, ec);
+  if (!ec) {
+    ++impl_->stats.sent;
+    return true;
+  }
+  if (ec == boost::asio::error::would_block || ec == boost::asio::error::no_buffer_space) {
+    ++impl_->stats.dropped_would_block;
+  } else {
+    ++impl_->stats.errors;
+  }
+  return false;
+}
+
+UdpSenderStats UdpSender::stats() const noexcept { return impl_->stats; }
+
+std::string UdpSender::describe() const {
+  return fmt::format("UDP {}:{}", impl_->destination.address().to_string(),
+                     impl_->destination.port());
+}
+
+struct UdpReceiver::Impl {
+  boost::asio::io_context io;
+  udp::socket socket{io};
+};
+
+core::Result<std::unique_ptr<UdpReceiver>> UdpReceiver::open(const std::string& address,
+                                                             std::uint16_t port) {
+  boost::system::error_code ec;
+  const auto ip = boost::asio::ip::make_address(address, ec);
+  if (ec) {
+    return core::Error{core::kExitUsage,
+                       fmt::format("'{}' is not a numeric IPv4/IPv6 address", address)};
+  }
+  auto impl = std::make_unique<Impl>();
+  const udp::endpoint ep(ip, port);
+  impl->socket.open(ep.protocol(), ec);
+  if (!ec) impl->socket.set_option(boost::asio::socket_base::reuse_address(true), ec);
+  if (!ec) impl->socket.bind(ep, ec);
+  if (!ec) impl->socket.non_blocking(true, ec);
+  if (ec) {
+    return core::Error{core::kExitIoError, fmt::format("cannot listen on UDP {}:{}: {}", address,
+                                                       port, ec.message())};
+  }
+  return std::unique_ptr<UdpReceiver>(new UdpReceiver(std::move(impl)));
+}
+
+UdpReceiver::UdpReceiver(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+UdpReceiver::~UdpReceiver() = default;
+
+std::optional<std::size_t> UdpReceiver::receive(std::span<std::uint8_t> buffer,
+                                                std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    boost::system::error_code ec;
+    udp::endpoint from;
+    const std::size_t n =
+        impl_->socket.receive_from(boost::asio::buffer(buffer.data(), buffer.size()), from, 0, ec);
+    if (!ec) return n;
+    if (ec != boost::asio::error::would_block && ec != boost::asio::error::interrupted &&
+        ec != boost::asio::error::message_size) {
+      return std::nullopt;
+    }
+    if (ec == boost::asio::error::message_size) return buffer.size();
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return std::nullopt;
+    pollfd p{impl_->socket.native_handle(), POLLIN, 0};
+    ::poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 1000)));
+  }
+}
+
+std::uint16_t UdpReceiver::port() const { return impl_->socket.local_endpoint().port(); }
+
+}  // namespace cndt::net
