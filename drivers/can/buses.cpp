@@ -6,6 +6,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstring>
 
@@ -13,6 +14,16 @@
 
 namespace cndt::can {
 namespace {
+
+// Counted on the sending thread, read by the health reporter: relaxed atomics.
+struct AtomicStats {
+  std::atomic<std::uint64_t> sent{0}, dropped{0}, errors{0};
+  CanBusStats snapshot() const noexcept {
+    return {sent.load(std::memory_order_relaxed), dropped.load(std::memory_order_relaxed),
+            errors.load(std::memory_order_relaxed)};
+  }
+};
+void bump(std::atomic<std::uint64_t>& c) noexcept { c.fetch_add(1, std::memory_order_relaxed); }
 
 class CandumpLogBus final : public CanBus {
  public:
@@ -30,11 +41,11 @@ class CandumpLogBus final : public CanBus {
     const std::size_t n =
         format_candump_line(frame, stamp, iface_, std::span<char>(buffer_).subspan(used_));
     if (n == 0) {
-      ++stats_.errors;
+      bump(stats_.errors);
       return false;
     }
     used_ += n;
-    ++stats_.sent;
+    bump(stats_.sent);
     return true;
   }
 
@@ -44,7 +55,7 @@ class CandumpLogBus final : public CanBus {
       const ssize_t w = ::write(fd_, buffer_.data() + off, used_ - off);
       if (w < 0 && errno == EINTR) continue;
       if (w <= 0) {
-        ++stats_.errors;  // the disk refused: the frames in hand are lost, counted
+        bump(stats_.errors);  // the disk refused: the frames in hand are lost, counted
         break;
       }
       off += static_cast<std::size_t>(w);
@@ -52,7 +63,7 @@ class CandumpLogBus final : public CanBus {
     used_ = 0;
   }
 
-  [[nodiscard]] CanBusStats stats() const noexcept override { return stats_; }
+  [[nodiscard]] CanBusStats stats() const noexcept override { return stats_.snapshot(); }
   [[nodiscard]] std::string describe() const override {
     return fmt::format("candump log '{}' (interface {})", path_, iface_);
   }
@@ -63,7 +74,7 @@ class CandumpLogBus final : public CanBus {
   std::string path_, iface_;
   std::array<char, 16384> buffer_{};
   std::size_t used_ = 0;
-  CanBusStats stats_;
+  AtomicStats stats_;
 };
 
 class SocketCanBus final : public CanBus {
@@ -82,19 +93,19 @@ class SocketCanBus final : public CanBus {
     for (;;) {
       const ssize_t w = ::write(fd_, &cf, sizeof cf);
       if (w == static_cast<ssize_t>(sizeof cf)) {
-        ++stats_.sent;
+        bump(stats_.sent);
         return true;
       }
       if (w < 0 && errno == EINTR) continue;
       if (w < 0 && (errno == ENOBUFS || errno == EAGAIN || errno == EWOULDBLOCK)) {
-        ++stats_.dropped_queue_full;  // a stale pose is worth less than a blocked odometry
+        bump(stats_.dropped);  // a stale pose is worth less than a blocked odometry
       } else {
-        ++stats_.errors;
+        bump(stats_.errors);
       }
       return false;
     }
   }
-  [[nodiscard]] CanBusStats stats() const noexcept override { return stats_; }
+  [[nodiscard]] CanBusStats stats() const noexcept override { return stats_.snapshot(); }
   [[nodiscard]] std::string describe() const override {
     return fmt::format("SocketCAN {}", iface_);
   }
@@ -102,7 +113,7 @@ class SocketCanBus final : public CanBus {
  private:
   int fd_;
   std::string iface_;
-  CanBusStats stats_;
+  AtomicStats stats_;
 };
 
 }  // namespace

@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <poll.h>
 
+#include <atomic>
+
 #include "asio.hpp"
 
 namespace cndt::net {
@@ -13,7 +15,8 @@ struct UdpSender::Impl {
   boost::asio::io_context io;
   udp::socket socket{io};
   udp::endpoint destination;
-  UdpSenderStats stats;
+  // Counted on the sending thread, read by the health reporter.
+  std::atomic<std::uint64_t> sent{0}, dropped{0}, errors{0};
 };
 
 core::Result<std::unique_ptr<UdpSender>> UdpSender::open(const std::string& address,
@@ -21,13 +24,14 @@ core::Result<std::unique_ptr<UdpSender>> UdpSender::open(const std::string& addr
   boost::system::error_code ec;
   const auto ip = boost::asio::ip::make_address(address, ec);
   if (ec) {
-    return core::Error{core::kExitConfigError,
-                       fmt::format("UDP output address '{}' is not a numeric IPv4/IPv6 address",
-                                   address)};
+    return core::Error{
+        core::kExitConfigError,
+        fmt::format("UDP output address '{}' is not a numeric IPv4/IPv6 address", address)};
   }
   if (port == 0) {
-    return core::Error{core::kExitConfigError,
-                       fmt::format("UDP output port 0 for '{}': give the receiver's port", address)};
+    return core::Error{
+        core::kExitConfigError,
+        fmt::format("UDP output port 0 for '{}': give the receiver's port", address)};
   }
   auto impl = std::make_unique<Impl>();
   impl->destination = udp::endpoint(ip, port);
@@ -48,21 +52,25 @@ UdpSender::~UdpSender() = default;
 
 bool UdpSender::send(core::ByteSpan datagram) noexcept {
   boost::system::error_code ec;
-  impl_->socket.send_to(boost::asio::buffer(datagram.data(), datagram.size()),
-                        impl_->destination, 0, ec);
+  impl_->socket.send_to(boost::asio::buffer(datagram.data(), datagram.size()), impl_->destination,
+                        0, ec);
   if (!ec) {
-    ++impl_->stats.sent;
+    impl_->sent.fetch_add(1, std::memory_order_relaxed);
     return true;
   }
   if (ec == boost::asio::error::would_block || ec == boost::asio::error::no_buffer_space) {
-    ++impl_->stats.dropped_would_block;
+    impl_->dropped.fetch_add(1, std::memory_order_relaxed);
   } else {
-    ++impl_->stats.errors;
+    impl_->errors.fetch_add(1, std::memory_order_relaxed);
   }
   return false;
 }
 
-UdpSenderStats UdpSender::stats() const noexcept { return impl_->stats; }
+UdpSenderStats UdpSender::stats() const noexcept {
+  return {impl_->sent.load(std::memory_order_relaxed),
+          impl_->dropped.load(std::memory_order_relaxed),
+          impl_->errors.load(std::memory_order_relaxed)};
+}
 
 std::string UdpSender::describe() const {
   return fmt::format("UDP {}:{}", impl_->destination.address().to_string(),
@@ -89,8 +97,8 @@ core::Result<std::unique_ptr<UdpReceiver>> UdpReceiver::open(const std::string& 
   if (!ec) impl->socket.bind(ep, ec);
   if (!ec) impl->socket.non_blocking(true, ec);
   if (ec) {
-    return core::Error{core::kExitIoError, fmt::format("cannot listen on UDP {}:{}: {}", address,
-                                                       port, ec.message())};
+    return core::Error{core::kExitIoError,
+                       fmt::format("cannot listen on UDP {}:{}: {}", address, port, ec.message())};
   }
   return std::unique_ptr<UdpReceiver>(new UdpReceiver(std::move(impl)));
 }

@@ -48,9 +48,9 @@ int listen_udp(const ListenArgs& a, std::ostream& out) {
   while (!g_stop && (a.count == 0 || good + bad < a.count)) {
     const auto n = rx.value()->receive(buf, std::chrono::milliseconds(200));
     if (!n) {
-      if (a.timeout_s > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() -
-                                                           idle_since)
-                                     .count() >= a.timeout_s) {
+      if (a.timeout_s > 0 &&
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - idle_since).count() >=
+              a.timeout_s) {
         spdlog::info("no datagram for {} s: stopping", a.timeout_s);
         break;
       }

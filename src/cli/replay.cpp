@@ -1,3 +1,6 @@
+// cndt replay: a capture (or a folder of clouds) through the runtime cndtd runs on (the same
+// threads, rings and publishers), in replay mode: back-pressure instead of drops, so that the
+// outputs are the same on every run.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
@@ -8,36 +11,20 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
+#include <thread>
 
-#include "cndt/cli/alloc_counter.hpp"
 #include "cndt/cli/cloud_io.hpp"
 #include "cndt/cli/commands.hpp"
-#include "cndt/runtime/publisher.hpp"
+#include "cndt/config/config.hpp"
+#include "cndt/runtime/alloc_counter.hpp"
+#include "cndt/runtime/pipeline.hpp"
+#include "cndt/runtime/setup.hpp"
 #include "cndt/slam/map_file.hpp"
-#include "cndt/slam/mapper.hpp"
-#include "cndt/slam/odometry.hpp"
 
 namespace cndt::cli {
 namespace {
-
-constexpr std::size_t kWarmupScans = 20;  // buffers reach their working size by then
-
-struct ReplayContext {
-  slam::ConsensusOdometry* odometry = nullptr;
-  slam::Mapper* mapper = nullptr;  // null: odometry only
-  runtime::PosePublisher* publisher = nullptr;
-  std::ofstream trajectory, csv;
-  std::ofstream odometry_tum, refined_tum, refined_csv;  // with the mapper
-  std::vector<double> map_cm;                            // Cm against the map, per refined scan
-  std::vector<double> mapper_ms;                         // per closed keyframe
-  std::size_t max_scans = 0;
-  std::size_t scans = 0;
-  std::vector<double> ms;
-  std::uint64_t iterations = 0;
-  std::uint64_t allocations = 0;
-  bool done = false;
-};
 
 void write_tum(std::ofstream& out, double t, const Eigen::Isometry3d& pose) {
   const Eigen::Quaterniond q(pose.linear());
@@ -48,8 +35,8 @@ void write_tum(std::ofstream& out, double t, const Eigen::Isometry3d& pose) {
                      q.z(), q.w());
 }
 
-// "x,y,z,roll,pitch,yaw" (metres, degrees) as a pose.
-core::Result<Eigen::Isometry3d> parse_pose(const std::string& s) {
+// "x,y,z,roll,pitch,yaw" (metres, degrees) as six numbers.
+core::Result<std::vector<double>> parse_pose(const std::string& s) {
   std::vector<double> v;
   std::stringstream in(s);
   for (std::string item; std::getline(in, item, ',');) {
@@ -68,66 +55,7 @@ core::Result<Eigen::Isometry3d> parse_pose(const std::string& s) {
                                    "degrees), six numbers",
                                    s)};
   }
-  constexpr double kDeg = M_PI / 180.0;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = core::rotation(v[3] * kDeg, v[4] * kDeg, v[5] * kDeg);
-  T.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
-  return T;
-}
-
-void write_refined(ReplayContext& c) {
-  for (const auto& p : c.mapper->refined()) {
-    write_tum(c.refined_tum, p.stamp, p.pose);
-    c.refined_csv << fmt::format("{:.9f},{},{:.6f}\n", p.stamp, c.mapper->stats().keyframes, p.cm);
-    if (!std::isnan(p.cm)) c.map_cm.push_back(p.cm);
-  }
-}
-
-void on_scan(const core::Scan& scan, void* user) {
-  auto& c = *static_cast<ReplayContext*>(user);
-  if (c.done) return;
-  const bool counting = c.scans >= kWarmupScans;
-  const std::uint64_t before = alloc_count();
-  alloc_counting(counting);
-  const auto t0 = std::chrono::steady_clock::now();
-  const slam::OdometryResult r = c.odometry->process(scan);
-  const auto t1 = std::chrono::steady_clock::now();
-  alloc_counting(false);
-  if (counting) c.allocations += alloc_count() - before;
-  const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-  c.ms.push_back(ms);
-  c.iterations += static_cast<std::uint64_t>(r.coarse_iterations + r.fine_iterations);
-  const std::int64_t ns = r.stamp.count();
-  // A skipped scan has no pose; its line in the per-scan table says why.
-  if ((r.flags & slam::kOdomSkipped) == 0) {
-    Eigen::Isometry3d published = r.pose;
-    if (c.mapper == nullptr) {
-      write_tum(c.trajectory, static_cast<double>(ns) * 1e-9, r.pose);
-    } else {
-      if ((r.flags & slam::kOdomTooFewPoints) == 0) {
-        const auto m0 = std::chrono::steady_clock::now();
-        const bool closed =
-            c.mapper->add(static_cast<double>(ns) * 1e-9, r.pose, c.odometry->scan_points());
-        if (closed) {
-          c.mapper_ms.push_back(
-              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - m0)
-                  .count());
-          write_refined(c);
-        }
-      }
-      write_tum(c.odometry_tum, static_cast<double>(ns) * 1e-9, r.pose);
-      published = c.mapper->correction() * r.pose;
-      write_tum(c.trajectory, static_cast<double>(ns) * 1e-9, published);
-    }
-    c.publisher->publish(runtime::make_pose_message(r, published, c.mapper != nullptr,
-                                                    static_cast<std::uint32_t>(scan.sequence),
-                                                    c.publisher->options()));
-  }
-  c.csv << fmt::format("{}.{:09d},{:.6f},{},{},{},{},{},{},{:.3f},{}\n", ns / 1'000'000'000,
-                       ns % 1'000'000'000, r.cm, r.coarse_iterations, r.fine_iterations,
-                       r.voxels_before, r.voxels_after, r.points, r.raw_points, ms, r.flags);
-  ++c.scans;
-  if (c.max_scans > 0 && c.scans >= c.max_scans) c.done = true;
+  return v;
 }
 
 double percentile(std::vector<double> v, double p) {
@@ -138,10 +66,71 @@ double percentile(std::vector<double> v, double p) {
   return v[i];
 }
 
+// Whether an option was typed (always true when run_replay is called without a parser).
+bool given(const ReplayArgs& a, const char* option) {
+  return a.command == nullptr || a.command->count(option) > 0;
+}
+
+// The configuration the replay runs with: the file's (or the defaults), then every option
+// given on the command line on top.
+core::Result<config::Config> replay_config(const ReplayArgs& a) {
+  config::Config c;
+  if (!a.config.empty()) {
+    auto loaded = config::load_config(a.config);
+    if (!loaded) return loaded.error();
+    c = std::move(loaded.value());
+  }
+  const CaptureArgs& ca = a.capture_args;
+  if (given(a, "--model")) c.sensor.model = ca.model;
+  if (given(a, "--sensor-ip")) c.sensor.sensor_ip = ca.sensor_ip;
+  if (given(a, "--data-port")) c.sensor.data_port = ca.data_port;
+  if (given(a, "--position-port")) c.sensor.position_port = ca.position_port;
+  if (given(a, "--cut-angle")) c.sensor.cut_angle_deg = ca.cut_angle_deg;
+  if (given(a, "--min-range")) c.sensor.min_range_m = ca.min_range_m;
+  if (given(a, "--max-range")) c.sensor.max_range_m = ca.max_range_m;
+  if (given(a, "--no-vertical-offsets")) c.sensor.vertical_offsets = !ca.no_vertical_offsets;
+  if (given(a, "--max-points")) c.sensor.max_points = static_cast<std::int64_t>(ca.max_points);
+  if (given(a, "--mode")) c.odometry.mode = a.mode;
+  if (given(a, "--reference")) c.odometry.reference = a.reference;
+  if (given(a, "--mapper")) c.mapper.enabled = c.mapper.enabled || a.mapper;
+  if (given(a, "--map")) c.mapper.load = a.map;
+  if (given(a, "--map-mode")) c.mapper.mode = a.map_mode;
+  if (given(a, "--save-map")) c.mapper.save = a.save_map;
+  if (given(a, "--map-window")) c.mapper.window_m = a.map_window_m;
+  if (given(a, "--initial-pose") && !a.initial_pose.empty()) {
+    auto pose = parse_pose(a.initial_pose);
+    if (!pose) return pose.error();
+    c.mapper.initial_pose = pose.value();
+  }
+  if (!a.udp_out.empty()) c.udp.destinations.push_back(a.udp_out);
+  // The command line's capture checks (ranges, model names, addresses).
+  CaptureArgs check = ca;
+  check.model = c.sensor.model;
+  check.sensor_ip = c.sensor.sensor_ip;
+  check.min_range_m = c.sensor.min_range_m;
+  check.max_range_m = c.sensor.max_range_m;
+  check.cut_angle_deg = c.sensor.cut_angle_deg;
+  check.max_points = static_cast<std::size_t>(c.sensor.max_points);
+  if (auto ok = to_capture_options(check); !ok) return ok.error();
+  if (!a.udp_out.empty() && !runtime::split_endpoint(a.udp_out)) {
+    return core::Error{core::kExitUsage,
+                       fmt::format("--udp-out '{}': expected ADDRESS:PORT (e.g. 127.0.0.1:5600, "
+                                   "[::1]:5600)",
+                                   a.udp_out)};
+  }
+  return c;
+}
+
+// Per-keyframe outputs of the mapper, written on the mapper thread.
+struct MapperOutputs {
+  std::ofstream refined_tum, refined_csv;
+  std::vector<double> map_cm, mapper_ms;
+};
+
 }  // namespace
 
 void register_replay(CLI::App& app, ReplayArgs& a) {
-  auto* cmd = app.add_subcommand(
+  auto* cmd = a.command = app.add_subcommand(
       "replay",
       "Run consensus-NDT odometry over a capture and write trajectory.tum (time x y z "
       "qx qy qz qw: the sensor pose at each scan start), scans.csv (per scan: time, "
@@ -167,6 +156,12 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
                   "previous-scan (the paper's choice)")
       ->capture_default_str()
       ->check(CLI::IsMember({"local-map", "previous-scan"}));
+  cmd->add_option("--config", a.config,
+                  "Read the settings from this cndtd configuration file (config/cndtd.toml "
+                  "documents every key); options given here override it");
+  cmd->add_flag("--realtime", a.realtime,
+                "Deliver the capture's packets at their recorded pace (default: as fast as the "
+                "odometry takes them)");
   cmd->add_option("--max-scans", a.max_scans, "Stop after this many scans (0: all)")
       ->capture_default_str();
   cmd->add_flag("--mapper", a.mapper,
@@ -202,147 +197,173 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
   add_capture_options(*cmd, a.capture_args);
 }
 
-core::Result<std::pair<std::string, std::uint16_t>> parse_endpoint(const std::string& text,
-                                                                   const std::string& what) {
-  const auto colon = text.rfind(':');
-  std::string host = colon == std::string::npos ? "" : text.substr(0, colon);
-  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') {
-    host = host.substr(1, host.size() - 2);
-  }
-  unsigned long port = 0;
-  try {
-    std::size_t used = 0;
-    const std::string p = colon == std::string::npos ? "" : text.substr(colon + 1);
-    port = std::stoul(p, &used);
-    if (used != p.size()) port = 0;
-  } catch (const std::exception&) {
-    port = 0;
-  }
-  if (host.empty() || port == 0 || port > 65535) {
-    return core::Error{core::kExitUsage,
-                       fmt::format("{} '{}': expected ADDRESS:PORT (e.g. 127.0.0.1:5600, "
-                                   "[::1]:5600)",
-                                   what, text)};
-  }
-  return std::pair<std::string, std::uint16_t>{host, static_cast<std::uint16_t>(port)};
-}
-
 int run_replay(const ReplayArgs& a) {
-  auto options = to_capture_options(a.capture_args);
-  if (!options) return fail(options.error());
+  auto cfg = replay_config(a);
+  if (!cfg) return fail(cfg.error());
+  const config::Config& c = cfg.value();
+  auto setup_r = runtime::make_setup(c);
+  if (!setup_r) return fail(setup_r.error());
+  runtime::Setup& setup = setup_r.value();
+  setup.pcap.speed = a.realtime ? 1.0 : 0.0;
+  setup.pipeline.live = false;
+  if (!c.can.interface.empty()) {
+    spdlog::info("replay does not send on CAN interface '{}': the frames are in can.log",
+                 c.can.interface);
+  }
   if (auto err = create_output_dir(a.out_dir)) return fail(*err);
-  slam::OdometryOptions oo;
-  oo.mode = a.mode == "naive" ? slam::OdometryMode::kNaive : slam::OdometryMode::kConsensus;
-  oo.reference =
-      a.reference == "previous-scan" ? slam::Reference::kPreviousScan : slam::Reference::kLocalMap;
-  oo.max_scan_points = options.value().driver.assembler.max_points;
-  slam::ConsensusOdometry odometry(oo);
-  ReplayContext ctx;
-  ctx.odometry = &odometry;
-  slam::MapperOptions mo;
-  mo.max_scan_points = oo.max_scan_points;
-  mo.eta = oo.eta;
-  mo.point_cell = oo.map_cell;
-  mo.map.window_radius = a.map_window_m;
-  mo.update_map = a.map.empty() || a.map_mode == "update";
-  std::optional<slam::Mapper> mapper;
-  if (a.mapper || !a.map.empty() || !a.save_map.empty()) {
-    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
-    if (!a.initial_pose.empty()) {
-      auto pose = parse_pose(a.initial_pose);
-      if (!pose) return fail(pose.error());
-      start = pose.value();
-    }
-    mapper.emplace(mo);
-    if (!a.map.empty()) {
-      auto prior = slam::load_map_file(a.map, mo.map);
-      if (!prior) return fail(prior.error());
-      spdlog::info("localizing in '{}' ({} map): {} voxels", a.map, a.map_mode,
-                   prior.value().size());
-      mapper->start_from(std::move(prior.value()), start);
-    }
-    ctx.mapper = &*mapper;
-  }
-  ctx.max_scans = a.max_scans;
   const std::filesystem::path dir(a.out_dir);
-  runtime::PosePublisher publisher{runtime::PublisherOptions{}};
-  {
-    auto log = can::open_candump_log((dir / "can.log").string(), "can0");
-    if (!log) return fail(log.error());
-    publisher.add_can(std::move(log.value()));
+
+  config::Config outputs = c;
+  outputs.can.interface.clear();
+  outputs.can.log = (dir / "can.log").string();
+  auto publisher = runtime::make_publisher(outputs, setup.publisher);
+  if (!publisher) return fail(publisher.error());
+
+  std::optional<slam::NdtMap> prior;
+  if (!c.mapper.load.empty()) {
+    auto loaded = slam::load_map_file(c.mapper.load, setup.pipeline.mapper_options.map);
+    if (!loaded) return fail(loaded.error());
+    spdlog::info("localizing in '{}' ({} map): {} voxels", c.mapper.load, c.mapper.mode,
+                 loaded.value().size());
+    prior = std::move(loaded.value());
   }
-  if (!a.udp_out.empty()) {
-    auto ep = parse_endpoint(a.udp_out, "--udp-out");
-    if (!ep) return fail(ep.error());
-    auto udp = net::UdpSender::open(ep.value().first, ep.value().second);
-    if (!udp) return fail(udp.error());
-    publisher.add_udp(std::move(udp.value()));
+  const bool with_mapper = setup.pipeline.mapper;
+  std::ofstream trajectory(dir / "trajectory.tum", std::ios::trunc);
+  std::ofstream csv(dir / "scans.csv", std::ios::trunc);
+  std::ofstream odometry_tum;
+  MapperOutputs mo;
+  if (with_mapper) {
+    odometry_tum.open(dir / "odometry.tum", std::ios::trunc);
+    mo.refined_tum.open(dir / "refined.tum", std::ios::trunc);
+    mo.refined_csv.open(dir / "refined.csv", std::ios::trunc);
+    mo.refined_csv << "time,keyframe,cm_map\n";
   }
-  ctx.publisher = &publisher;
-  ctx.trajectory.open(dir / "trajectory.tum", std::ios::trunc);
-  ctx.csv.open(dir / "scans.csv", std::ios::trunc);
-  if (ctx.mapper != nullptr) {
-    ctx.odometry_tum.open(dir / "odometry.tum", std::ios::trunc);
-    ctx.refined_tum.open(dir / "refined.tum", std::ios::trunc);
-    ctx.refined_csv.open(dir / "refined.csv", std::ios::trunc);
-    ctx.refined_csv << "time,keyframe,cm_map\n";
-  }
-  if (!ctx.trajectory || !ctx.csv ||
-      (ctx.mapper != nullptr && (!ctx.odometry_tum || !ctx.refined_tum || !ctx.refined_csv))) {
+  if (!trajectory || !csv ||
+      (with_mapper && (!odometry_tum || !mo.refined_tum || !mo.refined_csv))) {
     return fail({core::kExitIoError,
                  fmt::format("cannot write in '{}': {}", a.out_dir, std::strerror(errno))});
   }
-  ctx.csv << "time,cm,coarse_iterations,fine_iterations,voxels_before,voxels_after,points,"
-             "raw_points,odometry_ms,flags\n";
-  const auto wall0 = std::chrono::steady_clock::now();
-  CaptureReport r;
-  std::error_code ec;
-  if (std::filesystem::is_directory(a.capture, ec)) {
-    // A folder of clouds (KITTI .bin or PCD): one scan per file, no firing times (no deskew).
-    auto folder = list_cloud_folder(a.capture, a.scan_period_s);
-    if (!folder) return fail(folder.error());
-    core::Scan scan(oo.max_scan_points);
-    const CloudFolder& f = folder.value();
-    for (std::size_t i = 0; i < f.files.size() && !ctx.done; ++i) {
-      if (auto err = read_cloud(f.files[i], scan)) return fail(*err);
-      if (scan.points_dropped > 0) {
-        spdlog::warn("'{}': {} points beyond the capacity of {} dropped", f.files[i],
-                     scan.points_dropped, oo.max_scan_points);
+  csv << "time,cm,coarse_iterations,fine_iterations,voxels_before,voxels_after,points,"
+         "raw_points,odometry_ms,flags\n";
+
+  runtime::Pipeline pipeline(setup.pipeline, setup.max_points, *publisher.value());
+  if (prior) pipeline.start_from(std::move(*prior), setup.initial_pose);
+  if (with_mapper) {
+    pipeline.on_keyframe([&mo](const slam::Mapper& m, double ms) {
+      mo.mapper_ms.push_back(ms);
+      for (const auto& p : m.refined()) {
+        write_tum(mo.refined_tum, p.stamp, p.pose);
+        mo.refined_csv << fmt::format("{:.9f},{},{:.6f}\n", p.stamp, m.stats().keyframes, p.cm);
+        if (!std::isnan(p.cm)) mo.map_cm.push_back(p.cm);
       }
-      scan.stamp = std::chrono::nanoseconds(std::llround(f.times_s[i] * 1e9));
-      scan.sequence = i;
-      on_scan(scan, &ctx);
-    }
-  } else {
-    auto report = read_capture(a.capture, options.value(), on_scan, &ctx);
-    if (!report) return fail(report.error());
-    r = report.value();
-    warn_if_cut_short(r);
+    });
   }
-  if (ctx.mapper != nullptr) {
-    const auto m0 = std::chrono::steady_clock::now();
-    ctx.mapper->flush();
-    if (!ctx.mapper->refined().empty()) {
-      ctx.mapper_ms.push_back(
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - m0).count());
+  const auto wall0 = std::chrono::steady_clock::now();
+  pipeline.start();
+
+  // The input thread: packets through the driver, scans into the pipeline.
+  std::optional<core::Error> input_error;
+  CaptureReport report;
+  std::thread input([&] {
+    struct Feed {
+      runtime::Pipeline* pipeline;
+      std::size_t max_scans, pushed = 0;
+    } feed{&pipeline, a.max_scans};
+    const auto push = [](const core::Scan& scan, void* ctx) {
+      auto& f = *static_cast<Feed*>(ctx);
+      if (f.max_scans > 0 && f.pushed >= f.max_scans) return;
+      if (f.pipeline->push(scan, std::chrono::steady_clock::now())) ++f.pushed;
+    };
+    std::error_code ec;
+    if (std::filesystem::is_directory(a.capture, ec)) {
+      // A folder of clouds (KITTI .bin or PCD): one scan per file, no firing times (no deskew).
+      auto folder = list_cloud_folder(a.capture, a.scan_period_s);
+      if (!folder) {
+        input_error = folder.error();
+      } else {
+        core::Scan scan(setup.max_points);
+        const CloudFolder& f = folder.value();
+        for (std::size_t i = 0; i < f.files.size(); ++i) {
+          if (feed.max_scans > 0 && feed.pushed >= feed.max_scans) break;
+          if (auto err = read_cloud(f.files[i], scan)) {
+            input_error = *err;
+            break;
+          }
+          if (scan.points_dropped > 0) {
+            spdlog::warn("'{}': {} points beyond the capacity of {} dropped", f.files[i],
+                         scan.points_dropped, setup.max_points);
+          }
+          scan.stamp = std::chrono::nanoseconds(std::llround(f.times_s[i] * 1e9));
+          scan.sequence = i;
+          push(scan, &feed);
+        }
+      }
+    } else {
+      CaptureOptions co;
+      co.pcap = setup.pcap;
+      co.driver = setup.driver;
+      auto r = read_capture(a.capture, co, push, &feed);
+      if (!r) {
+        input_error = r.error();
+      } else {
+        report = std::move(r.value());
+      }
     }
-    write_refined(ctx);
-    ctx.odometry_tum.close();
-    ctx.refined_tum.close();
-    ctx.refined_csv.close();
-    if (!a.save_map.empty()) {
-      if (auto err = slam::save_map_file(ctx.mapper->map(), a.save_map)) return fail(*err);
-      spdlog::info("map saved to '{}': {} voxels", a.save_map, ctx.mapper->map().size());
+    pipeline.close_input(true);
+  });
+
+  std::vector<double> ms;
+  std::uint64_t iterations = 0, scans = 0;
+  const auto consume = [&](const runtime::ScanResult& res) {
+    const slam::OdometryResult& r = res.odometry;
+    const std::int64_t ns = r.stamp.count();
+    const double t = static_cast<double>(ns) * 1e-9;
+    ms.push_back(res.odometry_ms);
+    iterations += static_cast<std::uint64_t>(r.coarse_iterations + r.fine_iterations);
+    ++scans;
+    // A skipped scan has no pose; its line in the per-scan table says why.
+    if (res.published_pose) {
+      write_tum(trajectory, t, res.published);
+      if (with_mapper) write_tum(odometry_tum, t, r.pose);
+    }
+    csv << fmt::format("{}.{:09d},{:.6f},{},{},{},{},{},{},{:.3f},{}\n", ns / 1'000'000'000,
+                       ns % 1'000'000'000, r.cm, r.coarse_iterations, r.fine_iterations,
+                       r.voxels_before, r.voxels_after, r.points, r.raw_points, res.odometry_ms,
+                       r.flags);
+  };
+  runtime::ScanResult res;
+  while (!pipeline.done()) {
+    bool any = false;
+    while (pipeline.pop(res)) {
+      consume(res);
+      any = true;
+    }
+    if (!any) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  input.join();
+  pipeline.join();
+  while (pipeline.pop(res)) consume(res);
+  if (input_error) return fail(*input_error);
+  if (!report.path.empty()) warn_if_cut_short(report);
+
+  const runtime::PipelineStats ps = pipeline.stats();
+  slam::Mapper* mapper = pipeline.mapper();
+  if (with_mapper) {
+    odometry_tum.close();
+    mo.refined_tum.close();
+    mo.refined_csv.close();
+    if (!c.mapper.save.empty()) {
+      if (auto err = slam::save_map_file(mapper->map(), c.mapper.save)) return fail(*err);
+      spdlog::info("map saved to '{}': {} voxels", c.mapper.save, mapper->map().size());
     }
   }
-  publisher.flush();
-  for (const auto& bus : publisher.can_buses()) {
+  for (const auto& bus : publisher.value()->can_buses()) {
     if (bus->stats().errors > 0) {
       return fail({core::kExitIoError, fmt::format("{}: {} frames could not be written",
                                                    bus->describe(), bus->stats().errors)});
     }
   }
-  for (const auto& udp : publisher.udp_senders()) {
+  for (const auto& udp : publisher.value()->udp_senders()) {
     const auto st = udp->stats();
     if (st.dropped_would_block + st.errors > 0) {
       spdlog::warn("{}: {} datagrams sent, {} dropped (socket full), {} failed", udp->describe(),
@@ -351,9 +372,9 @@ int run_replay(const ReplayArgs& a) {
   }
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-  ctx.trajectory.close();
-  ctx.csv.close();
-  if (!ctx.trajectory || !ctx.csv) {
+  trajectory.close();
+  csv.close();
+  if (!trajectory || !csv) {
     return fail({core::kExitIoError, fmt::format("writing in '{}' failed", a.out_dir)});
   }
   rusage ru{};
@@ -361,29 +382,29 @@ int run_replay(const ReplayArgs& a) {
   std::ofstream summary(dir / "summary.json", std::ios::trunc);
   summary << fmt::format(
       "{{\n  \"scans\": {},\n  \"packets_ok\": {},\n  \"packets_bad\": {},\n  \"scans_dropped\": "
-      "0,\n  \"lost_packets\": {},\n  \"odometry_ms_p50\": {:.3f},\n  \"odometry_ms_p99\": "
+      "{},\n  \"lost_packets\": {},\n  \"odometry_ms_p50\": {:.3f},\n  \"odometry_ms_p99\": "
       "{:.3f},\n  \"iterations_mean\": {:.3f},\n  \"heap_allocations_in_odometry\": {},\n  "
-      "\"heap_allocations_counted_after_scan\": {},\n  \"peak_rss_mb\": {:.1f},\n  \"wall_s\": "
-      "{:.3f},\n "
+      "\"heap_allocations_counted_after_scan\": {},\n  \"heap_allocations_include_malloc\": "
+      "{},\n  \"peak_rss_mb\": {:.1f},\n  \"wall_s\": {:.3f},\n "
       " \"mode\": \"{}\",\n  \"reference\": \"{}\",\n  \"mapper\": {},\n  \"keyframes\": {},\n  "
       "\"mapper_ms_p50\": {:.3f},\n  \"mapper_ms_p99\": {:.3f},\n  \"map_voxels\": {},\n  "
       "\"map_cm_median\": {:.4f}\n}}\n",
-      ctx.scans, r.driver.decoded_packets, r.driver.rejected_total(), r.assembler.lost_packets,
-      percentile(ctx.ms, 0.5), percentile(ctx.ms, 0.99),
-      ctx.scans > 1 ? static_cast<double>(ctx.iterations) / static_cast<double>(ctx.scans - 1)
-                    : 0.0,
-      ctx.allocations, kWarmupScans, static_cast<double>(ru.ru_maxrss) / 1024.0, wall, a.mode,
-      a.reference, ctx.mapper != nullptr, ctx.mapper ? ctx.mapper->stats().keyframes : 0,
-      percentile(ctx.mapper_ms, 0.5), percentile(ctx.mapper_ms, 0.99),
-      ctx.mapper ? ctx.mapper->map().size() : 0, percentile(ctx.map_cm, 0.5));
+      scans, report.driver.decoded_packets, report.driver.rejected_total(), ps.scans_dropped,
+      report.assembler.lost_packets, percentile(ms, 0.5), percentile(ms, 0.99),
+      scans > 1 ? static_cast<double>(iterations) / static_cast<double>(scans - 1) : 0.0,
+      ps.heap_allocations_in_odometry, setup.pipeline.warmup_scans, runtime::alloc_counts_malloc(),
+      static_cast<double>(ru.ru_maxrss) / 1024.0, wall, c.odometry.mode, c.odometry.reference,
+      with_mapper, mapper ? mapper->stats().keyframes : 0, percentile(mo.mapper_ms, 0.5),
+      percentile(mo.mapper_ms, 0.99), mapper ? mapper->map().size() : 0,
+      percentile(mo.map_cm, 0.5));
   summary.close();
-  if (ctx.scans == 0) {
+  if (scans == 0) {
     return fail({core::kExitDataError,
                  fmt::format("no scan in '{}' ({} data packets, {} rejected)", a.capture,
-                             r.driver.data_packets, r.driver.rejected_total())});
+                             report.driver.data_packets, report.driver.rejected_total())});
   }
   spdlog::info("{} scans in {:.1f} s; odometry {:.1f} ms median, {:.1f} ms p99; results in '{}'",
-               ctx.scans, wall, percentile(ctx.ms, 0.5), percentile(ctx.ms, 0.99), a.out_dir);
+               scans, wall, percentile(ms, 0.5), percentile(ms, 0.99), a.out_dir);
   return core::kExitOk;
 }
 

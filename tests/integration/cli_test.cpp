@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "cli_run.hpp"
 #include "cndt/cli/cloud_io.hpp"
 #include "cndt/core/bytes.hpp"
 #include "cndt/slam/map_file.hpp"
-#include "cli_run.hpp"
 #include "temp_dir.hpp"
 
 namespace {

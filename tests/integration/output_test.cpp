@@ -109,8 +109,7 @@ TEST_F(PoseOutput, CandumpLogDecodesWithTheDbcAloneToTheTrajectory) {
     const double whole = std::floor(traj[i].t);
     EXPECT_EQ(s["CNDT_Time.TimeS"], whole) << i;
     EXPECT_NEAR(s["CNDT_Time.TimeUs"] * 1e-6, traj[i].t - whole, 1.0e-6 + 3e-7) << i;
-    const Eigen::Vector3d p(s["CNDT_PositionXY.X"], s["CNDT_PositionXY.Y"],
-                            s["CNDT_PositionZ.Z"]);
+    const Eigen::Vector3d p(s["CNDT_PositionXY.X"], s["CNDT_PositionXY.Y"], s["CNDT_PositionZ.Z"]);
     // DBC resolution 1 mm (rounding: half of it), TUM's 6 decimals add at most 0.5 um.
     worst_pos = std::max(worst_pos, (p - traj[i].p).cwiseAbs().maxCoeff());
     const Eigen::Vector3d want = cndt::output::roll_pitch_yaw(traj[i].q.toRotationMatrix());

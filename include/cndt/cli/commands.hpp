@@ -18,10 +18,6 @@ std::optional<core::Error> create_output_dir(const std::string& dir);
 /// Logs one warning when the capture ended in the middle of a record.
 void warn_if_cut_short(const CaptureReport& report);
 
-/// "ADDRESS:PORT" ("[v6]:PORT" for IPv6) split into its parts; the error names `what`.
-core::Result<std::pair<std::string, std::uint16_t>> parse_endpoint(const std::string& text,
-                                                                   const std::string& what);
-
 /// Capture-reading options shared by info, decode and (later) replay.
 struct CaptureArgs {
   std::string model = "auto";
@@ -88,6 +84,9 @@ struct ReplayArgs {
   std::string save_map;
   double map_window_m = 0.0;  ///< evict map voxels farther than this from the vehicle; 0 keeps all
   std::string udp_out;        ///< also send every pose as a UDP datagram to ADDRESS:PORT
+  std::string config;         ///< cndtd configuration file (options given override it)
+  bool realtime = false;      ///< pace the capture at its recorded rate
+  CLI::App* command = nullptr;  ///< the parsed subcommand: which options were given
   CaptureArgs capture_args;
 };
 void register_replay(CLI::App& app, ReplayArgs& args);

@@ -1,0 +1,324 @@
+#include "cndt/runtime/pipeline.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <boost/lockfree/spsc_queue.hpp>
+
+#include "cndt/runtime/alloc_counter.hpp"
+
+namespace cndt::runtime {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr auto kPoll = std::chrono::microseconds(100);
+
+struct ScanSlot {
+  core::Scan scan;
+  Clock::time_point completed;
+  explicit ScanSlot(std::size_t capacity) : scan(capacity) {}
+};
+
+struct KeyScan {
+  double stamp = 0.0;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Vector3d> points;
+  std::uint64_t sequence = 0;
+};
+
+struct Ack {
+  std::uint64_t sequence = 0;
+  Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
+};
+
+template <class T>
+using Ring = boost::lockfree::spsc_queue<T>;
+
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
+
+struct Pipeline::Impl {
+  PipelineOptions options;
+  PosePublisher& publisher;
+  slam::Mapper* mapper = nullptr;
+  slam::ConsensusOdometry odometry;
+  std::vector<ScanSlot> slots;
+  Ring<std::uint32_t> full, free_slots;
+  std::vector<KeyScan> keys;
+  Ring<std::uint32_t> key_full, key_free;
+  Ring<Ack> acks;
+  Ring<ScanResult> results;
+  std::function<void(const slam::Mapper&, double)> keyframe_callback;
+  void (*scan_callback)(void*) = nullptr;
+  void* scan_context = nullptr;
+
+  std::atomic<bool> input_closed{false}, drain{true}, stopping{false};
+  std::atomic<bool> odometry_done{false}, mapper_done{false};
+  std::atomic<std::uint64_t> scans_in{0}, scans_dropped{0}, scans_done{0}, mapper_dropped{0},
+      results_dropped{0}, keyframes{0}, allocations{0};
+  std::atomic<bool> counting{false};
+  std::thread odometry_thread, mapper_thread;
+
+  Impl(const PipelineOptions& o, std::size_t max_points, PosePublisher& p)
+      : options(o),
+        publisher(p),
+        odometry(o.odometry),
+        full(o.scan_ring),
+        free_slots(o.scan_ring + 2),
+        key_full(o.keyframe_ring),
+        key_free(o.keyframe_ring + 1),
+        acks(o.keyframe_ring + 2),
+        results(o.result_ring) {
+    // Pool: the ring's scans, the one in the odometry's hands and one being copied in.
+    slots.reserve(o.scan_ring + 2);
+    for (std::size_t i = 0; i < o.scan_ring + 2; ++i) {
+      slots.emplace_back(max_points);
+      free_slots.push(static_cast<std::uint32_t>(i));
+    }
+    if (o.mapper) {
+      keys.resize(o.keyframe_ring + 1);
+      for (std::size_t i = 0; i < keys.size(); ++i) {
+        keys[i].points.reserve(max_points);
+        key_free.push(static_cast<std::uint32_t>(i));
+      }
+    }
+  }
+
+  static void log_setup_problems(const char* thread, const ThreadSetup& setup) {
+    for (const auto& p : apply_thread_setup(setup)) {
+      spdlog::warn("{} thread: {}; running on without it", thread, p);
+    }
+  }
+
+  // Waits (replay) for `ok()` to hold; false when stopping.
+  template <class F>
+  bool wait_for(F&& ok) {
+    while (!ok()) {
+      if (stopping.load(std::memory_order_relaxed)) return false;
+      std::this_thread::sleep_for(kPoll);
+    }
+    return true;
+  }
+
+  void run_odometry() {
+    log_setup_problems("odometry", options.odometry_thread);
+    Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
+    std::uint64_t processed = 0, base = 0;
+    for (;;) {
+      std::uint32_t idx = 0;
+      if (!full.pop(idx)) {
+        if (stopping.load()) break;
+        if (input_closed.load() && full.read_available() == 0) break;
+        std::this_thread::sleep_for(kPoll);
+        continue;
+      }
+      // Live: a ring that was full when this scan was taken means the input is waiting; the
+      // oldest scan (this one) gives way.
+      if (options.live && full.read_available() + 1 >= options.scan_ring) {
+        free_slots.push(idx);
+        scans_dropped.fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
+      if (stopping.load() || (input_closed.load() && !drain.load())) {
+        free_slots.push(idx);  // a shutdown: the scans still queued are not processed
+        continue;
+      }
+      ScanSlot& slot = slots[idx];
+      ScanResult res;
+      const auto t0 = Clock::now();
+      res.odometry = odometry.process(slot.scan);
+      const auto t1 = Clock::now();
+      res.odometry_ms = ms_between(t0, t1);
+      res.sequence = slot.scan.sequence;
+      const slam::OdometryResult& r = res.odometry;
+      const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
+      res.published = r.pose;
+      if (mapper != nullptr) {
+        if (!skipped && (r.flags & slam::kOdomTooFewPoints) == 0) hand_to_mapper(res, correction);
+        Ack ack;
+        while (acks.pop(ack)) correction = ack.correction;  // live: the newest finished
+        res.published = correction * r.pose;
+        res.map_corrected = true;
+      }
+      if (!skipped) {
+        res.published_pose = true;
+        publisher.publish(make_pose_message(r, res.published, res.map_corrected,
+                                            static_cast<std::uint32_t>(res.sequence),
+                                            publisher.options()));
+      }
+      res.latency_ms = ms_between(slot.completed, Clock::now());
+      free_slots.push(idx);
+      if (options.live) {
+        if (!results.push(res)) results_dropped.fetch_add(1, std::memory_order_relaxed);
+      } else if (!wait_for([&] { return results.push(res); })) {
+        break;
+      }
+      scans_done.fetch_add(1, std::memory_order_relaxed);
+      ++processed;
+      if (!counting.load(std::memory_order_relaxed) && processed >= options.warmup_scans) {
+        base = alloc_count();
+        alloc_counting(true);
+        counting.store(true);
+      }
+      if (counting.load(std::memory_order_relaxed)) {
+        allocations.store(alloc_count() - base, std::memory_order_relaxed);
+      }
+      if (scan_callback != nullptr) scan_callback(scan_context);
+    }
+    alloc_counting(false);
+    publisher.flush();
+    odometry_done.store(true);
+  }
+
+  // Copies the scan's points for the mapper; in replay waits until the mapper has taken them
+  // and applies the correction it had after that scan, as a single thread would.
+  void hand_to_mapper(const ScanResult& res, Eigen::Isometry3d& correction) {
+    std::uint32_t k = 0;
+    if (!key_free.pop(k)) {
+      if (options.live || !wait_for([&] { return key_free.pop(k); })) {
+        mapper_dropped.fetch_add(1, std::memory_order_relaxed);
+        return;
+      }
+    }
+    KeyScan& key = keys[k];
+    key.stamp = static_cast<double>(res.odometry.stamp.count()) * 1e-9;
+    key.pose = res.odometry.pose;
+    const auto pts = odometry.scan_points();
+    key.points.assign(pts.begin(), pts.end());
+    key.sequence = res.sequence;
+    key_full.push(k);
+    if (!options.live) {
+      Ack ack;
+      wait_for([&] {
+        while (acks.pop(ack)) {
+          correction = ack.correction;
+          if (ack.sequence == res.sequence) return true;
+        }
+        return false;
+      });
+    }
+  }
+
+  void run_mapper() {
+    log_setup_problems("mapper", options.mapper_thread);
+    for (;;) {
+      std::uint32_t k = 0;
+      if (!key_full.pop(k)) {
+        const bool odometry_finished = odometry_done.load();
+        if (stopping.load() || (odometry_finished && key_full.read_available() == 0)) break;
+        std::this_thread::sleep_for(kPoll);
+        continue;
+      }
+      KeyScan& key = keys[k];
+      const auto t0 = Clock::now();
+      const bool closed = mapper->add(key.stamp, key.pose, key.points);
+      if (closed) {
+        keyframes.fetch_add(1);
+        if (keyframe_callback) keyframe_callback(*mapper, ms_between(t0, Clock::now()));
+      }
+      acks.push(Ack{key.sequence, mapper->correction()});
+      key_free.push(k);
+    }
+    if (!stopping.load() || input_closed.load()) {
+      const auto t0 = Clock::now();
+      mapper->flush();
+      if (!mapper->refined().empty()) {
+        keyframes.fetch_add(1);
+        if (keyframe_callback) keyframe_callback(*mapper, ms_between(t0, Clock::now()));
+      }
+    }
+    mapper_done.store(true);
+  }
+};
+
+Pipeline::Pipeline(const PipelineOptions& options, std::size_t max_scan_points,
+                   PosePublisher& publisher)
+    : impl_(std::make_unique<Impl>(options, max_scan_points, publisher)) {
+  if (options.mapper) {
+    mapper_ = std::make_unique<slam::Mapper>(options.mapper_options);
+    impl_->mapper = mapper_.get();
+  }
+}
+
+Pipeline::~Pipeline() {
+  stop();
+  join();
+}
+
+void Pipeline::start_from(slam::NdtMap&& map, const Eigen::Isometry3d& T_map_odom) {
+  if (mapper_) mapper_->start_from(std::move(map), T_map_odom);
+}
+
+void Pipeline::on_keyframe(std::function<void(const slam::Mapper&, double)> callback) {
+  impl_->keyframe_callback = std::move(callback);
+}
+
+void Pipeline::on_scan_done(void (*callback)(void*), void* context) {
+  impl_->scan_callback = callback;
+  impl_->scan_context = context;
+}
+
+void Pipeline::start() {
+  impl_->odometry_thread = std::thread([this] { impl_->run_odometry(); });
+  if (mapper_) {
+    impl_->mapper_thread = std::thread([this] { impl_->run_mapper(); });
+  } else {
+    impl_->mapper_done.store(true);
+  }
+}
+
+bool Pipeline::push(const core::Scan& scan, std::chrono::steady_clock::time_point completed) {
+  Impl& m = *impl_;
+  std::uint32_t idx = 0;
+  // The pool holds one slot more than the ring and the odometry can hold: a free one exists
+  // whenever the ring has room.
+  if (!m.wait_for([&] { return m.free_slots.pop(idx); })) return false;
+  ScanSlot& slot = m.slots[idx];
+  slot.scan = scan;  // within the slot's capacity: no allocation
+  slot.completed = completed;
+  m.scans_in.fetch_add(1, std::memory_order_relaxed);
+  // Replay waits for room; live waits too, but the odometry drops the oldest scan as soon as
+  // it sees the ring full, so the wait is at most one odometry step.
+  if (!m.wait_for([&] { return m.full.push(idx); })) {
+    m.free_slots.push(idx);
+    return false;
+  }
+  return true;
+}
+
+void Pipeline::close_input(bool drain) {
+  impl_->drain.store(drain);
+  impl_->input_closed.store(true);
+}
+
+void Pipeline::stop() { impl_->stopping.store(true); }
+
+bool Pipeline::pop(ScanResult& out) { return impl_->results.pop(out); }
+
+bool Pipeline::done() const {
+  return impl_->odometry_done.load() && impl_->mapper_done.load() &&
+         impl_->results.read_available() == 0;
+}
+
+void Pipeline::join() {
+  if (impl_->odometry_thread.joinable()) impl_->odometry_thread.join();
+  if (impl_->mapper_thread.joinable()) impl_->mapper_thread.join();
+}
+
+PipelineStats Pipeline::stats() const {
+  const Impl& m = *impl_;
+  PipelineStats s;
+  s.scans_in = m.scans_in.load();
+  s.scans_dropped = m.scans_dropped.load();
+  s.scans_done = m.scans_done.load();
+  s.mapper_dropped = m.mapper_dropped.load();
+  s.results_dropped = m.results_dropped.load();
+  s.keyframes = m.keyframes.load();
+  s.heap_allocations_in_odometry = m.allocations.load();
+  s.allocations_counted = m.counting.load();
+  return s;
+}
+
+}  // namespace cndt::runtime
