@@ -45,9 +45,7 @@ class PosePublisher {
   void flush() noexcept;
 
   [[nodiscard]] const PublisherStats& stats() const { return stats_; }
-  [[nodiscard]] const std::vector<std::unique_ptr<can::CanBus>>& can_buses() const {
-    return can_;
-  }
+  [[nodiscard]] const std::vector<std::unique_ptr<can::CanBus>>& can_buses() const { return can_; }
   [[nodiscard]] const std::vector<std::unique_ptr<net::UdpSender>>& udp_senders() const {
     return udp_;
   }
