@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite: unit and integration tests in an optimised build, the same tests under
-# AddressSanitizer + UndefinedBehaviorSanitizer, and every libFuzzer target for a bounded time.
+# AddressSanitizer + UndefinedBehaviorSanitizer, the threaded runtime under ThreadSanitizer, and
+# every libFuzzer target for a bounded time.
 # Tests read real captures from ../shared/data when it exists (they skip, saying so, otherwise).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -17,6 +18,11 @@ bash scripts/build.sh build/asan -DCMAKE_BUILD_TYPE=Debug -DCNDT_SANITIZE=addres
   -DCNDT_BUILD_BENCHMARKS=OFF
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build/asan --output-on-failure -j 2 -LE slow
+
+echo "== the threads under ThreadSanitizer"
+bash scripts/build.sh build/tsan --target thread_checks -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCNDT_SANITIZE=thread -DCNDT_BUILD_BENCHMARKS=OFF
+bash scripts/tsan.sh build/tsan
 
 echo "== fuzz (${fuzz_seconds} s per target)"
 bash scripts/build.sh build/fuzz --target fuzzers -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \

@@ -141,6 +141,7 @@ int run_daemon(const config::Config& c) {
     while (!stop_input.load()) {
       const io::NextResult r = source->next(packet, std::chrono::milliseconds(100));
       if (r == io::NextResult::kEnd) break;
+      if (live) pipeline.service_input();
       if (r == io::NextResult::kPacket) {
         if (packet.kind == io::PacketKind::kData) {
           driver.on_data(packet.payload, packet.time, sink);

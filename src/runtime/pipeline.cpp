@@ -59,6 +59,18 @@ struct Pipeline::Impl {
   std::atomic<std::uint64_t> scans_in{0}, scans_dropped{0}, scans_done{0}, mapper_dropped{0},
       results_dropped{0}, keyframes{0}, allocations{0};
   std::atomic<bool> counting{false};
+  // Live input: scans the full ring could not take yet (a FIFO on the input thread), and how
+  // many of the oldest ring scans the odometry is asked to drop to make room for them.
+  std::vector<std::uint32_t> pending;
+  std::size_t pending_head = 0, pending_size = 0;
+  std::atomic<std::uint64_t> drop_requests{0};
+  // Takes one drop request if there is one (both threads take them).
+  bool take_drop_request() noexcept {
+    std::uint64_t v = drop_requests.load();
+    while (v > 0 && !drop_requests.compare_exchange_weak(v, v - 1)) {
+    }
+    return v > 0;
+  }
   std::thread odometry_thread, mapper_thread;
 
   Impl(const PipelineOptions& o, std::size_t max_points, PosePublisher& p)
@@ -66,14 +78,16 @@ struct Pipeline::Impl {
         publisher(p),
         odometry(o.odometry),
         full(o.scan_ring),
-        free_slots(o.scan_ring + 2),
+        free_slots(2 * o.scan_ring + 2),
         key_full(o.keyframe_ring),
         key_free(o.keyframe_ring + 1),
         acks(o.keyframe_ring + 2),
         results(o.result_ring) {
-    // Pool: the ring's scans, the one in the odometry's hands and one being copied in.
-    slots.reserve(o.scan_ring + 2);
-    for (std::size_t i = 0; i < o.scan_ring + 2; ++i) {
+    // Pool: the ring's scans, the one in the odometry's hands, one being copied in, and (live)
+    // as many waiting on the input side for the ring to make room.
+    slots.reserve(2 * o.scan_ring + 2);
+    pending.resize(o.scan_ring);
+    for (std::size_t i = 0; i < 2 * o.scan_ring + 2; ++i) {
       slots.emplace_back(max_points);
       free_slots.push(static_cast<std::uint32_t>(i));
     }
@@ -114,9 +128,8 @@ struct Pipeline::Impl {
         std::this_thread::sleep_for(kPoll);
         continue;
       }
-      // Live: a ring that was full when this scan was taken means the input is waiting; the
-      // oldest scan (this one) gives way.
-      if (options.live && full.read_available() + 1 >= options.scan_ring) {
+      // Live: the input found the ring full; the oldest scans (this one first) give way.
+      if (options.live && take_drop_request()) {
         free_slots.push(idx);
         scans_dropped.fetch_add(1, std::memory_order_relaxed);
         continue;
@@ -271,24 +284,59 @@ void Pipeline::start() {
 
 bool Pipeline::push(const core::Scan& scan, std::chrono::steady_clock::time_point completed) {
   Impl& m = *impl_;
+  if (m.stopping.load()) return false;
+  if (m.options.live) service_input();
   std::uint32_t idx = 0;
-  // The pool holds one slot more than the ring and the odometry can hold: a free one exists
-  // whenever the ring has room.
-  if (!m.wait_for([&] { return m.free_slots.pop(idx); })) return false;
+  // Replay: a free slot exists whenever the ring has room. Live: the pool covers the ring, the
+  // odometry's scan, a full pending FIFO and one more; when the FIFO is full its oldest scan
+  // gives way and its slot takes the new one (the free list has a single producer, the
+  // odometry, so the input never puts slots back itself).
+  if (m.options.live) {
+    if (m.pending_size == m.pending.size()) {
+      idx = m.pending[m.pending_head];
+      m.pending_head = (m.pending_head + 1) % m.pending.size();
+      --m.pending_size;
+      m.take_drop_request();  // its request goes with it (unless already served)
+      m.scans_dropped.fetch_add(1, std::memory_order_relaxed);
+    } else if (!m.free_slots.pop(idx)) {
+      return false;  // cannot happen with the pool's size
+    }
+  } else if (!m.wait_for([&] { return m.free_slots.pop(idx); })) {
+    return false;
+  }
   ScanSlot& slot = m.slots[idx];
   slot.scan = scan;  // within the slot's capacity: no allocation
   slot.completed = completed;
   m.scans_in.fetch_add(1, std::memory_order_relaxed);
-  // Replay waits for room; live waits too, but the odometry drops the oldest scan as soon as
-  // it sees the ring full, so the wait is at most one odometry step.
-  if (!m.wait_for([&] { return m.full.push(idx); })) {
-    m.free_slots.push(idx);
-    return false;
+  if (m.options.live) {
+    if (m.pending_size == 0 && m.full.push(idx)) return true;
+    // The ring is full: the scan waits on this side, and the odometry drops the oldest ring
+    // scan for it at its next step. The input never waits for the odometry.
+    m.pending[(m.pending_head + m.pending_size) % m.pending.size()] = idx;
+    ++m.pending_size;
+    m.drop_requests.fetch_add(1);
+    return true;
   }
-  return true;
+  // Stopped while waiting: the slot stays out of the pool, which is going away.
+  return m.wait_for([&] { return m.full.push(idx); });
+}
+
+void Pipeline::service_input() {
+  Impl& m = *impl_;
+  while (m.pending_size > 0 && m.full.push(m.pending[m.pending_head])) {
+    m.pending_head = (m.pending_head + 1) % m.pending.size();
+    --m.pending_size;
+  }
 }
 
 void Pipeline::close_input(bool drain) {
+  if (impl_->options.live && drain) {
+    // Scans still pending on the input side go in as the ring makes room.
+    while (impl_->pending_size > 0 && !impl_->stopping.load()) {
+      service_input();
+      if (impl_->pending_size > 0) std::this_thread::sleep_for(std::chrono::microseconds(100));
+    }
+  }
   impl_->drain.store(drain);
   impl_->input_closed.store(true);
 }

@@ -217,11 +217,10 @@ TEST(Daemon, ServiceUnitExposureIsAtMostTwo) {
     GTEST_SKIP() << "systemd-analyze is not installed: the unit's exposure is not measured here";
   }
   const auto r = cndt::test::run_command("systemd-analyze security --offline=true " +
-                                         std::string(CNDT_SOURCE_DIR) +
-                                         "/systemd/cndtd.service");
+                                         std::string(CNDT_SOURCE_DIR) + "/systemd/cndtd.service");
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.output, m,
-                                std::regex(R"(Overall exposure level for cndtd\.service: ([0-9.]+))")))
+  ASSERT_TRUE(std::regex_search(
+      r.output, m, std::regex(R"(Overall exposure level for cndtd\.service: ([0-9.]+))")))
       << r.output;
   const double exposure = std::stod(m[1]);
   RecordProperty("exposure", m[1].str());
@@ -229,10 +228,10 @@ TEST(Daemon, ServiceUnitExposureIsAtMostTwo) {
   // What the unit promises beyond the score.
   std::ifstream unit(std::string(CNDT_SOURCE_DIR) + "/systemd/cndtd.service");
   const std::string text((std::istreambuf_iterator<char>(unit)), {});
-  for (const char* line : {"Type=notify", "WatchdogSec=", "Restart=on-failure", "DynamicUser=yes",
-                           "StateDirectory=cndtd", "ProtectSystem=strict",
-                           "RestrictAddressFamilies=AF_INET AF_INET6 AF_CAN AF_UNIX",
-                           "LimitMEMLOCK="}) {
+  for (const char* line :
+       {"Type=notify", "WatchdogSec=", "Restart=on-failure", "DynamicUser=yes",
+        "StateDirectory=cndtd", "ProtectSystem=strict",
+        "RestrictAddressFamilies=AF_INET AF_INET6 AF_CAN AF_UNIX", "LimitMEMLOCK="}) {
     EXPECT_NE(text.find(line), std::string::npos) << line;
   }
 }

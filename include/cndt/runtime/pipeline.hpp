@@ -4,10 +4,10 @@
 // correction T_map_odom back through another ring, and per-scan results leave through a third
 // ring to whoever writes files or health lines.
 //
-// Two modes. Live (the daemon on a sensor): when the scan ring is full the oldest scan is
-// dropped and counted, and the odometry applies whatever correction the mapper has finished.
-// Replay: back-pressure instead of drops, and the odometry waits for the mapper to have taken
-// each scan before publishing it, so that every run of a capture gives the same bytes.
+// Two modes. Live (the daemon on a sensor): the input never waits; when the scan ring is full
+// the oldest scan is dropped and counted, and the odometry applies whatever correction the mapper
+// has finished. Replay: back-pressure instead of drops, and the odometry waits for the mapper to
+// have taken each scan before publishing it, so that every run of a capture gives the same bytes.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -84,9 +84,12 @@ class Pipeline {
   void start();
 
   /// Input side (one thread): hands over a completed scan (copied into a slot). Replay mode
-  /// waits for room; live mode drops the oldest waiting scan when the ring is full. False once
-  /// stop() was called.
+  /// waits for room. Live mode never waits: when the ring is full the scan is held on the input
+  /// side and the odometry drops the oldest ring scan at its next step to make room. False
+  /// once stop() was called.
   bool push(const core::Scan& scan, std::chrono::steady_clock::time_point completed);
+  /// Live input side: moves held scans into the ring as it makes room (call after each packet).
+  void service_input();
   /// No more input. drain: the odometry processes every queued scan; otherwise only the scan
   /// in hand (a shutdown). The mapper then closes its open keyframe.
   void close_input(bool drain);

@@ -1,0 +1,172 @@
+// End-to-end latency of cndtd at the sensor's rate: a simulated VLP-16 street drive is sent over
+// loopback UDP at 10 Hz (one packet every 1327.104 us) to the real daemon, which publishes every
+// pose as a UDP datagram (and CAN frames to a candump log). For each scan: the time from sending
+// the last packet of its revolution to receiving its datagram. Prints p50/p90/p99/max, the
+// scans the daemon dropped, and the daemon's own final health line.
+//
+//   latency_bench CNDTD [SECONDS=60] [mapper]
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cndt/net/udp_datagram.hpp"
+#include "cndt/output/udp_codec.hpp"
+#include "cndt/sim/lidar_sim.hpp"
+
+extern char** environ;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const auto i = static_cast<std::size_t>(std::min<double>(
+      static_cast<double>(v.size() - 1), std::ceil(p * static_cast<double>(v.size())) - 1));
+  return v[i];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::cerr << "usage: latency_bench CNDTD [SECONDS=60] [mapper]\n";
+    return 2;
+  }
+  const std::string cndtd = argv[1];
+  const double seconds = argc > 2 ? std::stod(argv[2]) : 60.0;
+  const bool mapper = argc > 3 && std::string(argv[3]) == "mapper";
+
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("cndt-latency-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::uint16_t data_port = 0;
+  {
+    auto probe = cndt::net::UdpReceiver::open("127.0.0.1", 0);
+    data_port = probe.value()->port();
+  }
+  auto rx = cndt::net::UdpReceiver::open("127.0.0.1", 0);
+  if (!rx) {
+    std::cerr << rx.error().message << "\n";
+    return 1;
+  }
+  {
+    std::ofstream cfg(dir / "cndtd.toml");
+    cfg << "[sensor]\nbind_address = \"127.0.0.1\"\ndata_port = " << data_port
+        << "\nposition_port = 0\n[mapper]\nenabled = " << (mapper ? "true" : "false")
+        << "\n[can]\nlog = \"" << (dir / "can.log").string()
+        << "\"\n[udp]\ndestinations = [\"127.0.0.1:" << rx.value()->port() << "\"]\n";
+  }
+  std::fprintf(stderr, "simulating %.0f s of a street drive...\n", seconds);
+  const auto scene = cndt::sim::build_scene(cndt::sim::SceneKind::kStreet, seconds, 4, 1);
+  cndt::sim::LidarSimOptions so;
+  so.duration_s = seconds;
+  cndt::sim::LidarSimulator simulator(scene, so);
+  std::vector<cndt::sim::SimPacket> packets;
+  cndt::sim::SimPacket p;
+  while (simulator.next(p)) packets.push_back(p);
+
+  const std::string cfg_path = (dir / "cndtd.toml").string(),
+                    log_path = (dir / "cndtd.log").string();
+  std::vector<std::string> args{cndtd, "--config", cfg_path};
+  std::vector<char*> argv_c;
+  for (auto& a : args) argv_c.push_back(a.data());
+  argv_c.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 2, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, cndtd.c_str(), &fa, nullptr, argv_c.data(), environ) != 0) {
+    std::cerr << "cannot start " << cndtd << "\n";
+    return 1;
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+
+  // Receive on a thread of its own: datagram arrival times by scan start time.
+  std::map<std::int64_t, Clock::time_point> arrived;
+  std::atomic<bool> stop{false};
+  std::thread receiver([&] {
+    std::array<std::uint8_t, 256> buf{};
+    while (!stop.load()) {
+      const auto n = rx.value()->receive(buf, std::chrono::milliseconds(100));
+      const auto now = Clock::now();
+      if (!n) continue;
+      const auto d = cndt::output::decode_pose_datagram(cndt::core::ByteSpan(buf).first(*n));
+      if (d.error == cndt::output::DatagramError::kNone) arrived[d.pose.stamp_ns] = now;
+    }
+  });
+  auto tx = cndt::net::UdpSender::open("127.0.0.1", data_port);
+  std::vector<Clock::time_point> sent(packets.size());
+  const auto start = Clock::now();
+  for (std::size_t k = 0; k < packets.size(); ++k) {
+    std::this_thread::sleep_until(start + std::chrono::nanoseconds(1'327'104 * k));
+    tx.value()->send(packets[k].payload);
+    sent[k] = Clock::now();
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(2000));
+  stop.store(true);
+  receiver.join();
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+
+  // Scan k ends where scan k+1 starts: its last packet is the last one whose first firing is
+  // before the next scan's stamp (that packet completes the revolution in the driver). The
+  // daemon dates the sensor's top-of-hour clock by its own clock, so times are compared within
+  // the hour.
+  constexpr std::int64_t kHour = 3'600'000'000'000;
+  const auto in_hour = [](std::int64_t t) { return ((t % kHour) + kHour) % kHour; };
+  std::vector<std::int64_t> stamps;
+  for (const auto& [s, t] : arrived) stamps.push_back(s);
+  std::vector<double> latency_ms;
+  std::size_t j = 0;
+  for (std::size_t k = 0; k + 1 < stamps.size(); ++k) {
+    const std::int64_t next = stamps[k + 1];
+    if (next - stamps[k] > 150'000'000) continue;  // a scan between them is missing
+    while (j + 1 < packets.size() && in_hour(packets[j + 1].sensor_time_ns) < in_hour(next)) ++j;
+    latency_ms.push_back(
+        std::chrono::duration<double, std::milli>(arrived[stamps[k]] - sent[j]).count());
+  }
+  std::ifstream log_in(log_path);
+  std::string line, final_line;
+  while (std::getline(log_in, line)) {
+    if (line.find("final:") != std::string::npos) final_line = line;
+    // Anything the daemon warned about (or a sanitizer reported) is shown.
+    if (line.find("warn") != std::string::npos || line.find("error") != std::string::npos ||
+        line.find("WARNING") != std::string::npos) {
+      std::fprintf(stderr, "daemon: %s\n", line.c_str());
+    }
+  }
+  std::printf(
+      "cndtd at 10 Hz over loopback, %.0f s street drive%s: %zu packets, %zu poses "
+      "received\n",
+      seconds, mapper ? " with the mapper" : "", packets.size(), arrived.size());
+  std::printf(
+      "latency last packet -> pose datagram over %zu scans: p50 %.1f ms, p90 %.1f ms, "
+      "p99 %.1f ms, max %.1f ms\n",
+      latency_ms.size(), percentile(latency_ms, 0.5), percentile(latency_ms, 0.9),
+      percentile(latency_ms, 0.99), percentile(latency_ms, 1.0));
+  std::printf("daemon exit status %d; %s\n", WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+              final_line.c_str());
+  if (std::getenv("CNDT_KEEP_LOG") != nullptr) {
+    std::filesystem::copy_file(log_path, std::getenv("CNDT_KEEP_LOG"),
+                               std::filesystem::copy_options::overwrite_existing);
+  }
+  std::filesystem::remove_all(dir);
+  return 0;
+}

@@ -1,0 +1,207 @@
+// The threaded runtime: the odometry thread allocates nothing after warm-up, and a replay
+// through the threads gives exactly the poses a single-threaded loop gives, every time.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <thread>
+
+#include "cndt/can/can_bus.hpp"
+#include "cndt/runtime/alloc_counter.hpp"
+#include "cndt/runtime/pipeline.hpp"
+#include "cndt/sim/lidar_sim.hpp"
+#include "cndt/vlp16/driver.hpp"
+#include "temp_dir.hpp"
+
+namespace cndt::runtime {
+namespace {
+
+// The scans of a simulated drive, as the driver assembles them.
+std::vector<core::Scan> simulated_scans(sim::SceneKind kind, double seconds) {
+  const sim::Scene scene = sim::build_scene(kind, seconds, 4, 1);
+  sim::LidarSimOptions so;
+  so.duration_s = seconds;
+  sim::LidarSimulator simulator(scene, so);
+  vlp16::Driver driver(vlp16::DriverOptions{});
+  std::vector<core::Scan> scans;
+  auto sink = [&](core::Scan& s) { scans.push_back(s); };
+  sim::SimPacket p;
+  while (simulator.next(p)) {
+    driver.on_data(p.payload, std::chrono::nanoseconds(p.capture_time_ns), sink);
+  }
+  driver.finish(sink);
+  return scans;
+}
+
+std::vector<ScanResult> run_pipeline(const PipelineOptions& o, PosePublisher& publisher,
+                                     const std::vector<core::Scan>& scans, PipelineStats* stats) {
+  Pipeline pipeline(o, 150'000, publisher);
+  pipeline.start();
+  std::thread input([&] {
+    for (const auto& s : scans) pipeline.push(s, std::chrono::steady_clock::now());
+    pipeline.close_input(true);
+  });
+  std::vector<ScanResult> out;
+  ScanResult r;
+  while (!pipeline.done()) {
+    while (pipeline.pop(r)) out.push_back(r);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  input.join();
+  pipeline.join();
+  while (pipeline.pop(r)) out.push_back(r);
+  if (stats != nullptr) *stats = pipeline.stats();
+  return out;
+}
+
+TEST(AllocCounter, CountsOnTheCallingThreadOnly) {
+  alloc_counting(true);
+  const std::uint64_t before = alloc_count();
+  auto* p = new int(3);  // NOLINT: the allocation being counted
+  void* q = std::malloc(64);
+  std::thread other([] {
+    std::vector<int> v(1000);  // another thread's allocation is not ours
+    EXPECT_EQ(v.size(), 1000u);
+  });
+  other.join();
+  const std::uint64_t counted = alloc_count() - before;
+  alloc_counting(false);
+  std::free(q);
+  delete p;
+  // std::thread itself allocates its state once; the vector is on the other thread.
+  EXPECT_GE(counted, alloc_counts_malloc() ? 2u : 1u);
+  EXPECT_LE(counted, 4u);
+  const std::uint64_t idle = alloc_count();
+  auto* r = new int(4);
+  delete r;
+  EXPECT_EQ(alloc_count(), idle);  // not counting
+}
+
+// 200 scans after the warm-up on the odometry thread, publishing to a candump log and UDP:
+// not one heap allocation (malloc and operator new counted).
+TEST(Runtime, OdometryThreadAllocatesNothingAfterWarmUp) {
+  const auto scans = simulated_scans(sim::SceneKind::kStreet, 22.5);
+  ASSERT_GE(scans.size(), 222u);
+  test::TempDir dir;
+  PosePublisher publisher{PublisherOptions{}};
+  auto log = can::open_candump_log(dir.file("can.log"), "can0");
+  ASSERT_TRUE(log);
+  publisher.add_can(std::move(log.value()));
+  auto udp = net::UdpSender::open("127.0.0.1", 9);  // discard port: nobody listens
+  ASSERT_TRUE(udp);
+  publisher.add_udp(std::move(udp.value()));
+  PipelineOptions o;
+  o.warmup_scans = 20;
+  PipelineStats stats;
+  const auto results = run_pipeline(o, publisher, scans, &stats);
+  ASSERT_EQ(results.size(), scans.size());
+  EXPECT_TRUE(stats.allocations_counted);
+  EXPECT_GE(stats.scans_done - o.warmup_scans, 200u);
+  EXPECT_EQ(stats.heap_allocations_in_odometry, 0u);
+  RecordProperty("heap_allocations_in_odometry",
+                 std::to_string(stats.heap_allocations_in_odometry));
+  RecordProperty("scans_counted", std::to_string(stats.scans_done - o.warmup_scans));
+  EXPECT_EQ(stats.scans_dropped, 0u);
+}
+
+// The odometry and mapper run in one loop, as the replay did before it had threads.
+struct Reference {
+  std::vector<Eigen::Isometry3d> published;
+  std::vector<double> cm;
+};
+Reference single_threaded(const PipelineOptions& o, const std::vector<core::Scan>& scans) {
+  slam::ConsensusOdometry odometry(o.odometry);
+  slam::Mapper mapper(o.mapper_options);
+  Reference ref;
+  for (const auto& s : scans) {
+    const slam::OdometryResult r = odometry.process(s);
+    if ((r.flags & slam::kOdomSkipped) != 0) continue;
+    if ((r.flags & slam::kOdomTooFewPoints) == 0) {
+      mapper.add(static_cast<double>(r.stamp.count()) * 1e-9, r.pose, odometry.scan_points());
+    }
+    ref.published.push_back(mapper.correction() * r.pose);
+    ref.cm.push_back(r.cm);
+  }
+  return ref;
+}
+
+TEST(Runtime, ThreadedReplayEqualsASingleThreadedLoopEveryTime) {
+  const auto scans = simulated_scans(sim::SceneKind::kStreet, 8.0);
+  PipelineOptions o;
+  o.mapper = true;
+  o.scan_ring = 2;  // small rings: the threads wait on each other often
+  o.keyframe_ring = 2;
+  o.result_ring = 4;
+  const Reference ref = single_threaded(o, scans);
+  ASSERT_GE(ref.published.size(), 70u);
+  for (int run = 0; run < 2; ++run) {
+    PosePublisher publisher{PublisherOptions{}};
+    PipelineStats stats;
+    const auto results = run_pipeline(o, publisher, scans, &stats);
+    std::size_t k = 0;
+    for (const auto& r : results) {
+      if (!r.published_pose) continue;
+      ASSERT_LT(k, ref.published.size());
+      // Bit for bit: the same operations in the same order.
+      EXPECT_TRUE(r.published.matrix() == ref.published[k].matrix())
+          << "run " << run << " pose " << k;
+      EXPECT_EQ(r.odometry.cm, ref.cm[k]);
+      ++k;
+    }
+    EXPECT_EQ(k, ref.published.size());
+    EXPECT_GE(stats.keyframes, 2u);
+    EXPECT_EQ(stats.scans_dropped + stats.mapper_dropped + stats.results_dropped, 0u);
+  }
+}
+
+// Live input faster than the odometry: the input never waits, the oldest scans are dropped and
+// counted, and every scan is either processed once or counted as dropped.
+TEST(Runtime, LiveInputOverloadDropsTheOldestScans) {
+  const auto scans = simulated_scans(sim::SceneKind::kStreet, 4.0);
+  PipelineOptions o;
+  o.live = true;
+  o.scan_ring = 2;
+  PosePublisher publisher{PublisherOptions{}};
+  Pipeline pipeline(o, 150'000, publisher);
+  pipeline.start();
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const auto& s : scans) {
+    ASSERT_TRUE(pipeline.push(s, std::chrono::steady_clock::now()));
+    pipeline.service_input();
+  }
+  const double push_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  pipeline.close_input(true);
+  std::vector<ScanResult> results;
+  ScanResult r;
+  while (!pipeline.done()) {
+    while (pipeline.pop(r)) results.push_back(r);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  pipeline.join();
+  while (pipeline.pop(r)) results.push_back(r);
+  const PipelineStats st = pipeline.stats();
+  EXPECT_EQ(st.scans_in, scans.size());
+  EXPECT_GT(st.scans_dropped, 0u);
+  EXPECT_EQ(st.scans_done + st.scans_dropped, st.scans_in);
+  EXPECT_EQ(results.size(), st.scans_done);
+  for (std::size_t i = 1; i < results.size(); ++i) {
+    EXPECT_GT(results[i].sequence, results[i - 1].sequence);  // each scan once, in order
+  }
+  // Copying 40 scans in takes milliseconds; waiting for the odometry would take seconds.
+  EXPECT_LT(push_ms, 1000.0);
+}
+
+TEST(SocketCan, SendsOnVcan0WhereTheKernelHasIt) {
+  auto bus = can::open_socketcan("vcan0");
+  if (!bus) {
+    GTEST_SKIP() << "no SocketCAN here (" << bus.error().message
+                 << "); the candump-log bus carries the same frames in the other tests";
+  }
+  output::PoseMessage m;
+  const auto frames = output::encode_pose_frames(m, 0);
+  for (const auto& f : frames) EXPECT_TRUE(bus.value()->send(f, std::chrono::nanoseconds(0)));
+  EXPECT_EQ(bus.value()->stats().sent, frames.size());
+}
+
+}  // namespace
+}  // namespace cndt::runtime
