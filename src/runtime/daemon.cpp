@@ -67,7 +67,11 @@ int run_daemon(const config::Config& c) {
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
 
   if (c.runtime.realtime) {
-    if (auto problem = lock_memory()) spdlog::warn("{}; running on without it", *problem);
+    if (auto problem = lock_memory()) {
+      spdlog::warn("{}; running on without it", *problem);
+    } else {
+      spdlog::info("memory locked (mlockall)");
+    }
   }
   auto publisher = make_publisher(c, setup.publisher);
   if (!publisher) {

@@ -1,5 +1,6 @@
 #include "cndt/runtime/pipeline.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <boost/lockfree/spsc_queue.hpp>
@@ -101,8 +102,17 @@ struct Pipeline::Impl {
   }
 
   static void log_setup_problems(const char* thread, const ThreadSetup& setup) {
-    for (const auto& p : apply_thread_setup(setup)) {
+    const auto problems = apply_thread_setup(setup);
+    for (const auto& p : problems) {
       spdlog::warn("{} thread: {}; running on without it", thread, p);
+    }
+    if (problems.empty() && (setup.fifo_priority > 0 || setup.cpu >= 0 || setup.nice != 0)) {
+      spdlog::info("{} thread: {}{}{}", thread,
+                   setup.fifo_priority > 0
+                       ? fmt::format("SCHED_FIFO priority {} ", setup.fifo_priority)
+                       : std::string(),
+                   setup.cpu >= 0 ? fmt::format("on CPU {} ", setup.cpu) : std::string(),
+                   setup.nice != 0 ? fmt::format("nice {}", setup.nice) : std::string());
     }
   }
 
