@@ -19,8 +19,8 @@ int main(int argc, char** argv) {
       "cndtd: consensus-NDT LiDAR SLAM daemon. Reads VLP-16 packets (UDP, or a capture), "
       "publishes every scan's pose with its consensus metric Cm on CAN (config/cndt.dbc) and "
       "UDP (docs/protocol.md), and optionally builds and saves a map. Runs under systemd as "
-      "Type=notify (systemd/cndtd.service). Exit codes: 0 ok, 2 usage, 66 missing input, 74 "
-      "I/O error, 78 bad configuration"};
+      "Type=notify (systemd/cndtd.service). Exit codes: 0 ok, 2 usage, 65 bad input data (a "
+      "damaged map), 66 missing input, 74 I/O error, 78 bad configuration"};
   app.set_version_flag("--version", "cndtd 0.1.0");
   std::string config_path;
   bool check = false, print = false;

@@ -154,6 +154,10 @@ int listen_candump(const ListenArgs& a, std::ostream& out) {
   }
   decoder.finish();
   const auto& s = decoder.stats();
+  if (frames > 0 && s.frames == 0) {
+    spdlog::warn("no frame has the pose ids {:#x}..{:#x}: is --base-id right?", a.base_id,
+                 a.base_id + output::kCanFramesPerPose - 1);
+  }
   spdlog::info(
       "{} frames ({} of other ids): {} poses; rejected: {} CRC, {} length, {} malformed lines; "
       "rolling counter: {} gaps, {} repeats; {} incomplete poses",

@@ -84,8 +84,9 @@ bool quotes_balanced(const std::string& s) {
 std::int64_t DbcSignal::raw(std::span<const std::uint8_t> data) const noexcept {
   std::uint64_t v = 0;
   const auto bits = static_cast<unsigned>(data.size() * 8);
-  for_each_bit_msb_first(*this, bits,
-                         [&](unsigned pos) { v = (v << 1) | ((data[pos / 8] >> (pos % 8)) & 1u); });
+  for_each_bit_msb_first(*this, bits, [&](unsigned pos) {
+    v = (v << 1) | ((static_cast<unsigned>(data[pos / 8]) >> (pos % 8)) & 1u);
+  });
   if (is_signed && length < 64 && ((v >> (length - 1)) & 1u) != 0) v |= ~0ull << length;
   return static_cast<std::int64_t>(v);
 }

@@ -264,7 +264,11 @@ int run_daemon(const config::Config& c) {
   while (pipeline.pop(res)) ++results;
   status(true);
   int rc = 0;
-  if (slam::Mapper* mapper = pipeline.mapper(); mapper != nullptr && !c.mapper.save.empty()) {
+  slam::Mapper* mapper = pipeline.mapper();
+  if (mapper != nullptr && !c.mapper.save.empty() && mapper->map().size() == 0) {
+    // A daemon stopped before any scan (no sensor) must not replace a good map by nothing.
+    spdlog::warn("the map is empty: '{}' is left as it was", c.mapper.save);
+  } else if (mapper != nullptr && !c.mapper.save.empty()) {
     if (auto err = slam::save_map_file(mapper->map(), c.mapper.save)) {
       spdlog::error("{}", err->message);
       rc = err->code;
