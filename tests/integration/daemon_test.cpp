@@ -150,6 +150,7 @@ TEST(Daemon, RunsAsSystemdServiceFedOverUdp) {
   const std::size_t scans = std::stoul(m[1]), dropped = std::stoul(m[2]);
   const std::size_t published = std::stoul(m[3]) + std::stoul(m[4]) + std::stoul(m[5]);
   EXPECT_EQ(dropped, 0u) << log;
+  RecordProperty("poses_published", std::to_string(published));
   // 6 s at 10 Hz: 60 revolutions; the first (partial) is skipped, the last is still open.
   EXPECT_GE(published, 57u) << log;
   EXPECT_EQ(scans, published + 1) << log;
