@@ -20,7 +20,8 @@ rm -rf "$out"
 echo "cndt demo: odometry against the ground truth:"
 grep -E '"(ate_rmse_m|rte_percent|rre_deg_per_m)"' "$out/replay/eval.json"
 echo "cndt demo: the first CAN frames, decoded with config/cndt.dbc:"
-"$bin/cndt" listen --candump "$out/replay/can.log" --dbc config/cndt.dbc | head -6
+"$bin/cndt" listen --candump "$out/replay/can.log" --dbc config/cndt.dbc --out "$out/replay/can.csv"
+head -6 "$out/replay/can.csv"
 cat > "$out/cndtd.toml" <<TOML
 [sensor]
 source = "pcap"
