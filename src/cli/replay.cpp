@@ -18,6 +18,7 @@
 #include "cndt/cli/cloud_io.hpp"
 #include "cndt/cli/commands.hpp"
 #include "cndt/config/config.hpp"
+#include "cndt/core/percentile.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
 #include "cndt/runtime/pipeline.hpp"
 #include "cndt/runtime/setup.hpp"
@@ -56,14 +57,6 @@ core::Result<std::vector<double>> parse_pose(const std::string& s) {
                                    s)};
   }
   return v;
-}
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(std::min<double>(
-      static_cast<double>(v.size() - 1), std::ceil(p * static_cast<double>(v.size())) - 1));
-  return v[i];
 }
 
 // Whether an option was typed (always true when run_replay is called without a parser).
@@ -390,13 +383,13 @@ int run_replay(const ReplayArgs& a) {
       "\"mapper_ms_p50\": {:.3f},\n  \"mapper_ms_p99\": {:.3f},\n  \"map_voxels\": {},\n  "
       "\"map_cm_median\": {:.4f}\n}}\n",
       scans, report.driver.decoded_packets, report.driver.rejected_total(), ps.scans_dropped,
-      report.assembler.lost_packets, percentile(ms, 0.5), percentile(ms, 0.99),
+      report.assembler.lost_packets, core::percentile(ms, 0.5), core::percentile(ms, 0.99),
       scans > 1 ? static_cast<double>(iterations) / static_cast<double>(scans - 1) : 0.0,
       ps.heap_allocations_in_odometry, setup.pipeline.warmup_scans, runtime::alloc_counts_malloc(),
       static_cast<double>(ru.ru_maxrss) / 1024.0, wall, c.odometry.mode, c.odometry.reference,
-      with_mapper, mapper ? mapper->stats().keyframes : 0, percentile(mo.mapper_ms, 0.5),
-      percentile(mo.mapper_ms, 0.99), mapper ? mapper->map().size() : 0,
-      percentile(mo.map_cm, 0.5));
+      with_mapper, mapper ? mapper->stats().keyframes : 0, core::percentile(mo.mapper_ms, 0.5),
+      core::percentile(mo.mapper_ms, 0.99), mapper ? mapper->map().size() : 0,
+      core::percentile(mo.map_cm, 0.5));
   summary.close();
   if (scans == 0) {
     return fail({core::kExitDataError,
@@ -404,7 +397,7 @@ int run_replay(const ReplayArgs& a) {
                              report.driver.data_packets, report.driver.rejected_total())});
   }
   spdlog::info("{} scans in {:.1f} s; odometry {:.1f} ms median, {:.1f} ms p99; results in '{}'",
-               scans, wall, percentile(ms, 0.5), percentile(ms, 0.99), a.out_dir);
+               scans, wall, core::percentile(ms, 0.5), core::percentile(ms, 0.99), a.out_dir);
   return core::kExitOk;
 }
 

@@ -8,6 +8,7 @@
 #include <mutex>
 #include <thread>
 
+#include "cndt/core/percentile.hpp"
 #include "cndt/net/udp_source.hpp"
 #include "cndt/pcap/pcap_source.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
@@ -28,14 +29,6 @@ struct InputCounters {
   std::uint64_t lost_packets = 0;
   std::uint64_t udp_queue_full = 0;
 };
-
-double percentile(std::vector<double>& v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(std::min<double>(
-      static_cast<double>(v.size() - 1), std::ceil(p * static_cast<double>(v.size())) - 1));
-  return v[i];
-}
 
 std::string rejects_text(const vlp16::DriverStats& d) {
   std::string out;
@@ -190,13 +183,13 @@ int run_daemon(const config::Config& c) {
                               s.errors);
     }
     const std::string window =
-        final_line
-            ? std::string()
-            : fmt::format(
-                  "; odometry {:.1f}/{:.1f} ms, latency {:.1f}/{:.1f} ms (p50/p99 "
-                  "over the last {} scans); Cm median {:.2f}",
-                  percentile(odo_ms, 0.5), percentile(odo_ms, 0.99), percentile(latency, 0.5),
-                  percentile(latency, 0.99), odo_ms.size(), percentile(cm, 0.5));
+        final_line ? std::string()
+                   : fmt::format(
+                         "; odometry {:.1f}/{:.1f} ms, latency {:.1f}/{:.1f} ms (p50/p99 "
+                         "over the last {} scans); Cm median {:.2f}",
+                         core::percentile(odo_ms, 0.5), core::percentile(odo_ms, 0.99),
+                         core::percentile(latency, 0.5), core::percentile(latency, 0.99),
+                         odo_ms.size(), core::percentile(cm, 0.5));
     const std::string line = fmt::format(
         "{} scans (+{}), {} dropped; packets {} ok, rejected: {}, {} lost, {} queue-full{}; "
         "poses {} valid, {} degraded, {} lost; keyframes {}; heap allocations in odometry "
@@ -209,8 +202,8 @@ int run_daemon(const config::Config& c) {
         can_text, udp_text);
     spdlog::info("{}{}", final_line ? "final: " : "", line);
     notifier.send(fmt::format("STATUS={} scans, {} dropped, Cm {:.2f}, latency p99 {:.1f} ms",
-                              ps.scans_done, ps.scans_dropped, percentile(cm, 0.5),
-                              percentile(latency, 0.99)));
+                              ps.scans_done, ps.scans_dropped, core::percentile(cm, 0.5),
+                              core::percentile(latency, 0.99)));
     last_scans = ps.scans_done;
     latency.clear();
     odo_ms.clear();

@@ -23,6 +23,7 @@
 #include <thread>
 #include <vector>
 
+#include "cndt/core/percentile.hpp"
 #include "cndt/net/udp_datagram.hpp"
 #include "cndt/output/udp_codec.hpp"
 #include "cndt/sim/lidar_sim.hpp"
@@ -32,14 +33,6 @@ extern char** environ;
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(std::min<double>(
-      static_cast<double>(v.size() - 1), std::ceil(p * static_cast<double>(v.size())) - 1));
-  return v[i];
-}
 
 }  // namespace
 
@@ -159,8 +152,9 @@ int main(int argc, char** argv) {
   std::printf(
       "latency last packet -> pose datagram over %zu scans: p50 %.1f ms, p90 %.1f ms, "
       "p99 %.1f ms, max %.1f ms\n",
-      latency_ms.size(), percentile(latency_ms, 0.5), percentile(latency_ms, 0.9),
-      percentile(latency_ms, 0.99), percentile(latency_ms, 1.0));
+      latency_ms.size(), cndt::core::percentile(latency_ms, 0.5),
+      cndt::core::percentile(latency_ms, 0.9), cndt::core::percentile(latency_ms, 0.99),
+      cndt::core::percentile(latency_ms, 1.0));
   std::printf("daemon exit status %d; %s\n", WIFEXITED(status) ? WEXITSTATUS(status) : -1,
               final_line.c_str());
   if (std::getenv("CNDT_KEEP_LOG") != nullptr) {
