@@ -1,5 +1,6 @@
 #include "cndt/slam/odometry.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <optional>
 
@@ -16,6 +17,16 @@ Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& m, double a) {
 }
 
 bool finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
+
+// Smallest over largest eigenvalue of the translation block of an NDT Hessian: how evenly the
+// scene constrains the position. Below 0 when the match ended on a saddle; 0 for no Hessian.
+double translation_conditioning(const ndt::Matrix6d& hessian) {
+  const Eigen::Matrix3d h = hessian.topLeftCorner<3, 3>();
+  if (!h.allFinite()) return 0.0;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(h, Eigen::EigenvaluesOnly);
+  const double largest = es.eigenvalues()(2);
+  return largest > 0.0 ? es.eigenvalues()(0) / largest : 0.0;
+}
 
 }  // namespace
 
@@ -205,6 +216,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
     r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_, &lookup_cache_);
   }
   res.fine_iterations += r.iterations;
+  last_hessian_ = r.hessian;
   res.points = r.matched;
   res.pose = core::to_isometry(r.pose);
   return r.converged;
@@ -303,6 +315,10 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
     if (options_.deskew) deskew_all(scale_motion(estimated, to_period), period);
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
+    // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
+    // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.
+    res.conditioning = translation_conditioning(last_hessian_);
+    if (!(res.conditioning >= options_.degenerate_conditioning)) res.cm = 0.0;
     if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.

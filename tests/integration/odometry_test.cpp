@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -18,12 +20,12 @@
 namespace cndt::slam {
 namespace {
 
-// Simulates a street drive and hands every decoded scan to `sink`; returns the simulator's scan
-// starts (ground truth).
+// Simulates a drive through `kind` and hands every decoded scan to `sink`; returns the
+// simulator's scan starts (ground truth).
 template <class Sink>
-std::vector<sim::ScanStart> drive_street(double seconds, int movers, std::uint64_t seed,
-                                         Sink&& sink) {
-  const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, seconds, movers, seed);
+std::vector<sim::ScanStart> drive_scene(sim::SceneKind kind, double seconds, int movers,
+                                        std::uint64_t seed, Sink&& sink) {
+  const sim::Scene scene = sim::build_scene(kind, seconds, movers, seed);
   sim::LidarSimOptions so;
   so.duration_s = seconds;
   so.seed = seed;
@@ -35,6 +37,45 @@ std::vector<sim::ScanStart> drive_street(double seconds, int movers, std::uint64
   }
   driver.finish(sink);
   return simulator.scan_starts();
+}
+
+template <class Sink>
+std::vector<sim::ScanStart> drive_street(double seconds, int movers, std::uint64_t seed,
+                                         Sink&& sink) {
+  return drive_scene(sim::SceneKind::kStreet, seconds, movers, seed, sink);
+}
+
+// Share of the matched scans of a drive flagged degenerate; checks that each flagged pose is
+// reported with Cm = 0 and each other one has a well-conditioned Hessian.
+double degenerate_share(sim::SceneKind kind, double seconds) {
+  ConsensusOdometry odometry({});
+  int matched = 0, degenerate = 0;
+  drive_scene(kind, seconds, 2, 1, [&](core::Scan& scan) {
+    const OdometryResult r = odometry.process(scan);
+    if ((r.flags & (kOdomSkipped | kOdomFirstScan | kOdomTooFewPoints)) != 0) return;
+    ++matched;
+    EXPECT_TRUE(std::isfinite(r.cm) && std::isfinite(r.conditioning));
+    if ((r.flags & kOdomDegenerate) != 0) {
+      ++degenerate;
+      EXPECT_EQ(r.cm, 0.0);
+    } else {
+      EXPECT_GE(r.conditioning, odometry.options().degenerate_conditioning);
+      EXPECT_GT(r.cm, 0.0);
+    }
+  });
+  EXPECT_GT(matched, 0);
+  return matched > 0 ? static_cast<double>(degenerate) / matched : 0.0;
+}
+
+// A corridor (walls, floor and ceiling around the sensor, few features along it) does not fix
+// the position along its axis: most of its poses are flagged degenerate with Cm = 0, while a
+// street drive's are not.
+TEST(Odometry, FlagsTheCorridorDegenerateAndNotTheStreet) {
+  const double corridor = degenerate_share(sim::SceneKind::kCorridor, 15.0);
+  const double street = degenerate_share(sim::SceneKind::kStreet, 5.0);
+  std::printf("degenerate poses: corridor %.0f %%, street %.0f %%\n", 100 * corridor, 100 * street);
+  EXPECT_GE(corridor, 0.5);
+  EXPECT_LE(street, 0.1);
 }
 
 // The default odometry on a simulated street drive at 8 m/s: about 0.8 m and up to 1 degree of
