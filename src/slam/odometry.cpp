@@ -216,7 +216,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
     r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_, &lookup_cache_);
   }
   res.fine_iterations += r.iterations;
-  last_hessian_ = r.hessian;
+  res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
   res.points = r.matched;
   res.pose = core::to_isometry(r.pose);
   return r.converged;
@@ -317,7 +317,6 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
     // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
     // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.
-    res.conditioning = translation_conditioning(last_hessian_);
     if (!(res.conditioning >= options_.degenerate_conditioning)) res.cm = 0.0;
     if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
   }

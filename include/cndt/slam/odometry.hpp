@@ -162,7 +162,6 @@ class ConsensusOdometry {
   std::vector<std::uint8_t> mask_;
   std::vector<double> cv_;
   ndt::VoxelResiduals residuals_;
-  ndt::Matrix6d last_hessian_ = ndt::Matrix6d::Zero();  // of the last match
   bool have_prev_ = false, have_prev2_ = false;
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
