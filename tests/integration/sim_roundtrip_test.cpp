@@ -1,6 +1,8 @@
 // The simulator's capture decodes back to the simulator's own points and scan times.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -201,6 +203,38 @@ TEST(SimRoundTrip, DeterministicPerSeed) {
   const Scene s3 = build_scene(SceneKind::kCampus, 1.0, 4, 6);
   ASSERT_TRUE(write_simulation(s3, o, c.path().string()));
   EXPECT_NE(slurp(a.file("capture.pcap")), slurp(c.file("capture.pcap")));
+}
+
+// Largest change of the sensor's yaw rate from one 50 ms step to the next, deg/s^2. A steered
+// vehicle's heading turns smoothly: the rate ramps into and out of a corner.
+double peak_yaw_acceleration(const Scene& scene, double duration_s) {
+  constexpr double kStep = 0.05;
+  auto yaw = [&](double t) {
+    const Eigen::Matrix3d R = scene.sensor_pose(t).linear();
+    return std::atan2(R(1, 0), R(0, 0));
+  };
+  auto wrap = [](double a) { return std::remainder(a, 2.0 * 3.14159265358979); };
+  double peak = 0.0, last_rate = 0.0;
+  for (int k = 0; k * kStep < duration_s; ++k) {
+    const double t = k * kStep;
+    const double rate = wrap(yaw(t + kStep) - yaw(t)) / kStep;
+    if (k > 0) peak = std::max(peak, std::abs(rate - last_rate) / kStep);
+    last_rate = rate;
+  }
+  return peak * 180.0 / 3.14159265358979;
+}
+
+TEST(SimScene, YawRateIsContinuousThroughCorners) {
+  // The loop's corners have a 20 m radius: 20 deg/s at 7 m/s, entered over a few metres.
+  const Scene loop = build_scene(SceneKind::kLoop, 60.0, 0, 1);
+  const Scene campus = build_scene(SceneKind::kCampus, 60.0, 0, 1);
+  const double loop_peak = peak_yaw_acceleration(loop, 60.0);
+  const double campus_peak = peak_yaw_acceleration(campus, 60.0);
+  RecordProperty("loop_peak_yaw_acceleration_deg_s2", std::to_string(loop_peak));
+  RecordProperty("campus_peak_yaw_acceleration_deg_s2", std::to_string(campus_peak));
+  EXPECT_LT(loop_peak, 100.0);
+  EXPECT_LT(campus_peak, 100.0);
+  std::printf("peak yaw acceleration: loop %.1f, campus %.1f deg/s^2\n", loop_peak, campus_peak);
 }
 
 }  // namespace

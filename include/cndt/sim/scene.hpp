@@ -16,7 +16,8 @@ enum class SceneKind { kStreet, kCampus, kCorridor, kLoop };
 std::optional<SceneKind> parse_scene(std::string_view name);
 std::string_view scene_name(SceneKind kind);
 
-/// A centre line sampled every `step` metres; position and heading by arc length.
+/// A centre line sampled every `step` metres, smoothed so that heading and yaw rate are
+/// continuous; position and heading by arc length.
 class Path {
  public:
   Path() = default;
@@ -30,6 +31,7 @@ class Path {
   [[nodiscard]] double distance_to(const Eigen::Vector2d& p) const;
 
  private:
+  void smooth(bool closed);
   std::vector<Eigen::Vector3d> samples_;  // x, y, yaw
   double step_ = 0.25;
   double length_ = 0.0;
