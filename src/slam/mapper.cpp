@@ -287,8 +287,8 @@ int Mapper::refine() {
 
 void Mapper::score_and_update_map() {
   // Cm of every scan against the map as it stands (eqs 8-13). Then only points in voxels the map
-  // agrees with (Cv >= eta) enter; where the map cannot test a voxel (new ground, fewer than 5
-  // points) nothing speaks against the point and it enters with Cv 1.
+  // agrees with (Cv >= eta) enter; where the map cannot test a voxel (new ground, fewer test
+  // points than a Cv needs) nothing speaks against the point and it enters with Cv 1.
   for (std::size_t l = 0; l < open_; ++l) {
     const KeyframeScan& s = scans_[l];
     const bool test = map_.gaussians() > 0;
