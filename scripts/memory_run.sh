@@ -19,6 +19,7 @@ if [[ ! -f $capture ]]; then
   "$cndt" sim --scene street --duration "$seconds" --seed 3 --movers 4 --out "$out" >/dev/null
 fi
 size=$(stat -c %s "$capture")
+capture_path=$(realpath "$capture")
 "$cndt" replay "$capture" --out "$out/run" --mapper --map-window "$window" \
   >"$out/replay.log" 2>&1 &
 pid=$!
@@ -31,7 +32,7 @@ while kill -0 "$pid" 2>/dev/null; do
   hwm=$(awk '/^VmHWM/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
   pos=""
   for fd in /proc/$pid/fd/*; do
-    if [[ $(readlink "$fd" 2>/dev/null) == "$(realpath "$capture")" ]]; then
+    if [[ $(readlink "$fd" 2>/dev/null) == "$capture_path" ]]; then
       pos=$(awk '/^pos:/ {print $2}' "/proc/$pid/fdinfo/${fd##*/}" 2>/dev/null || true)
     fi
   done

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iterator>
+#include <numbers>
 #include <sstream>
 
 #include "cndt/cli/capture.hpp"
@@ -213,7 +214,7 @@ double peak_yaw_acceleration(const Scene& scene, double duration_s) {
     const Eigen::Matrix3d R = scene.sensor_pose(t).linear();
     return std::atan2(R(1, 0), R(0, 0));
   };
-  auto wrap = [](double a) { return std::remainder(a, 2.0 * 3.14159265358979); };
+  auto wrap = [](double a) { return std::remainder(a, 2.0 * std::numbers::pi); };
   double peak = 0.0, last_rate = 0.0;
   for (int k = 0; k * kStep < duration_s; ++k) {
     const double t = k * kStep;
@@ -221,7 +222,7 @@ double peak_yaw_acceleration(const Scene& scene, double duration_s) {
     if (k > 0) peak = std::max(peak, std::abs(rate - last_rate) / kStep);
     last_rate = rate;
   }
-  return peak * 180.0 / 3.14159265358979;
+  return peak * 180.0 / std::numbers::pi;
 }
 
 TEST(SimScene, YawRateIsContinuousThroughCorners) {
