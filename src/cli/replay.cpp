@@ -379,7 +379,8 @@ int run_replay(const ReplayArgs& a) {
       "{},\n  \"lost_packets\": {},\n  \"odometry_ms_p50\": {:.3f},\n  \"odometry_ms_p99\": "
       "{:.3f},\n  \"iterations_mean\": {:.3f},\n  \"heap_allocations_in_odometry\": {},\n  "
       "\"heap_allocations_counted_after_scan\": {},\n  \"heap_allocations_include_malloc\": "
-      "{},\n  \"peak_rss_mb\": {:.1f},\n  \"wall_s\": {:.3f},\n "
+      "{},\n  \"page_faults_in_odometry\": {},\n  \"peak_rss_mb\": {:.1f},\n  \"wall_s\": "
+      "{:.3f},\n "
       " \"mode\": \"{}\",\n  \"reference\": \"{}\",\n  \"mapper\": {},\n  \"keyframes\": {},\n  "
       "\"mapper_ms_p50\": {:.3f},\n  \"mapper_ms_p99\": {:.3f},\n  \"map_voxels\": {},\n  "
       "\"map_cm_median\": {:.4f}\n}}\n",
@@ -387,10 +388,10 @@ int run_replay(const ReplayArgs& a) {
       report.assembler.lost_packets, core::percentile(ms, 0.5), core::percentile(ms, 0.99),
       scans > 1 ? static_cast<double>(iterations) / static_cast<double>(scans - 1) : 0.0,
       ps.heap_allocations_in_odometry, setup.pipeline.warmup_scans, runtime::alloc_counts_malloc(),
-      static_cast<double>(ru.ru_maxrss) / 1024.0, wall, c.odometry.mode, c.odometry.reference,
-      with_mapper, mapper ? mapper->stats().keyframes : 0, core::percentile(mo.mapper_ms, 0.5),
-      core::percentile(mo.mapper_ms, 0.99), mapper ? mapper->map().size() : 0,
-      core::percentile(mo.map_cm, 0.5));
+      ps.page_faults_in_odometry, static_cast<double>(ru.ru_maxrss) / 1024.0, wall, c.odometry.mode,
+      c.odometry.reference, with_mapper, mapper ? mapper->stats().keyframes : 0,
+      core::percentile(mo.mapper_ms, 0.5), core::percentile(mo.mapper_ms, 0.99),
+      mapper ? mapper->map().size() : 0, core::percentile(mo.map_cm, 0.5));
   summary.close();
   if (scans == 0) {
     return fail({core::kExitDataError,

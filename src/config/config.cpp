@@ -143,6 +143,10 @@ const std::vector<Field>& fields() {
        "Re-deskew with the estimated motion and match again this many times.", "", 0, 5},
       {"odometry", "local_map_scans", CNDT_REF(odometry.local_map_scans),
        "Scans the local-map reference holds.", "scans", 1, 1000},
+      {"odometry", "local_map_points", CNDT_REF(odometry.local_map_points),
+       "Points the local-map scans hold together (one buffer, allocated once, at least "
+       "max_points); when a new scan does not fit, the oldest scans leave until it does.",
+       "points", 1000, 100'000'000},
       {"odometry", "max_map_voxels", CNDT_REF(odometry.max_map_voxels),
        "Voxel capacity of the reference NDT (allocated once).", "voxels", 1000, 50'000'000},
       {"odometry", "min_points", CNDT_REF(odometry.min_points),
@@ -195,6 +199,11 @@ const std::vector<Field>& fields() {
        "scans", 2, 64},
       {"runtime", "keyframe_ring", CNDT_REF(runtime.keyframe_ring),
        "Scans buffered between the odometry and the mapper.", "scans", 2, 1024},
+      {"runtime", "keyframe_ring_points", CNDT_REF(runtime.keyframe_ring_points),
+       "Points the scans buffered for the mapper hold together (one buffer, allocated once, at "
+       "least max_points). Live input: a scan that does not fit is not mapped (counted); replay "
+       "waits instead.",
+       "points", 1000, 100'000'000},
       {"runtime", "realtime", CNDT_REF(runtime.realtime),
        "Lock memory (mlockall) and run the odometry thread SCHED_FIFO; without the privilege "
        "one warning is logged and the daemon runs on."},

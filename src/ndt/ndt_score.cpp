@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "cndt/core/resident.hpp"
+
 namespace cndt::ndt {
 namespace {
 
@@ -62,8 +64,8 @@ constexpr std::int32_t kUnset = std::numeric_limits<std::int32_t>::min();
 }  // namespace
 
 LookupCache::LookupCache(std::size_t points) : capacity_(points) {
-  keys_.reserve(points);
-  indices_.reserve(points * 7);
+  core::reserve_resident(keys_, points);
+  core::reserve_resident(indices_, points * 7);
 }
 
 void LookupCache::reset(std::size_t points) {

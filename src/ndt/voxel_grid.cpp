@@ -6,6 +6,8 @@
 #include <bit>
 #include <cmath>
 
+#include "cndt/core/resident.hpp"
+
 namespace cndt::ndt {
 namespace {
 std::uint64_t hash(const VoxelKey& k) {
@@ -22,8 +24,13 @@ VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
   // never mistakes a new grid at a reused address for the one it was filled from.
   static std::atomic<std::uint64_t> grids{0};
   version_ = (grids.fetch_add(1, std::memory_order_relaxed) + 1) << 32;
-  voxels_.reserve(options.capacity);
-  dirty_.reserve(options.capacity);
+  if (options.resident) {
+    core::reserve_resident(voxels_, options.capacity);
+    core::reserve_resident(dirty_, options.capacity);
+  } else {
+    voxels_.reserve(options.capacity);
+    dirty_.reserve(options.capacity);
+  }
   // Load factor at most one half.
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(16, options.capacity * 2));
   table_.assign(slots, -1);

@@ -2,8 +2,11 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
 
 #include <boost/lockfree/spsc_queue.hpp>
+#include <optional>
+#include <span>
 
 #include "cndt/runtime/alloc_counter.hpp"
 
@@ -19,10 +22,11 @@ struct ScanSlot {
   explicit ScanSlot(std::size_t capacity) : scan(capacity) {}
 };
 
+// A scan for the mapper; its points are key_pool[offset, offset + count).
 struct KeyScan {
   double stamp = 0.0;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  std::vector<Eigen::Vector3d> points;
+  std::size_t offset = 0, count = 0;
   std::uint64_t sequence = 0;
 };
 
@@ -38,6 +42,13 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
+// Minor and major page faults of the calling thread so far.
+std::uint64_t thread_page_faults() noexcept {
+  rusage u{};
+  if (getrusage(RUSAGE_THREAD, &u) != 0) return 0;
+  return static_cast<std::uint64_t>(u.ru_minflt) + static_cast<std::uint64_t>(u.ru_majflt);
+}
+
 }  // namespace
 
 struct Pipeline::Impl {
@@ -49,6 +60,14 @@ struct Pipeline::Impl {
   Ring<std::uint32_t> full, free_slots;
   std::vector<KeyScan> keys;
   Ring<std::uint32_t> key_full, key_free;
+  // The points of the scans handed to the mapper, one after the other in a circular buffer.
+  // The mapper takes scans in the order they were handed, so the odometry thread knows which
+  // regions are still in use from how many scans the mapper has released.
+  std::vector<Eigen::Vector3d> key_pool;
+  std::vector<KeyScan> key_regions;       // odometry thread: by hand number modulo keys.size()
+  std::uint64_t keys_handed = 0;          // odometry thread
+  std::optional<std::uint32_t> held_key;  // odometry thread: a free slot taken, not yet used
+  std::atomic<std::uint64_t> keys_released{0};
   Ring<Ack> acks;
   Ring<ScanResult> results;
   std::function<void(const slam::Mapper&, double)> keyframe_callback;
@@ -58,7 +77,7 @@ struct Pipeline::Impl {
   std::atomic<bool> input_closed{false}, drain{true}, stopping{false};
   std::atomic<bool> odometry_done{false}, mapper_done{false};
   std::atomic<std::uint64_t> scans_in{0}, scans_dropped{0}, scans_done{0}, mapper_dropped{0},
-      results_dropped{0}, keyframes{0}, allocations{0};
+      results_dropped{0}, keyframes{0}, allocations{0}, page_faults{0};
   std::atomic<bool> counting{false};
   // Live input: scans the full ring could not take yet (a FIFO on the input thread), and how
   // many of the oldest ring scans the odometry is asked to drop to make room for them.
@@ -94,10 +113,9 @@ struct Pipeline::Impl {
     }
     if (o.mapper) {
       keys.resize(o.keyframe_ring + 1);
-      for (std::size_t i = 0; i < keys.size(); ++i) {
-        keys[i].points.reserve(max_points);
-        key_free.push(static_cast<std::uint32_t>(i));
-      }
+      key_regions.resize(keys.size());
+      for (std::size_t i = 0; i < keys.size(); ++i) key_free.push(static_cast<std::uint32_t>(i));
+      key_pool.assign(std::max(o.keyframe_ring_points, max_points), Eigen::Vector3d::Zero());
     }
   }
 
@@ -129,7 +147,7 @@ struct Pipeline::Impl {
   void run_odometry() {
     log_setup_problems("odometry", options.odometry_thread);
     Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
-    std::uint64_t processed = 0, base = 0;
+    std::uint64_t processed = 0, base = 0, faults_base = 0;
     for (;;) {
       std::uint32_t idx = 0;
       if (!full.pop(idx)) {
@@ -182,11 +200,13 @@ struct Pipeline::Impl {
       ++processed;
       if (!counting.load(std::memory_order_relaxed) && processed >= options.warmup_scans) {
         base = alloc_count();
+        faults_base = thread_page_faults();
         alloc_counting(true);
         counting.store(true);
       }
       if (counting.load(std::memory_order_relaxed)) {
         allocations.store(alloc_count() - base, std::memory_order_relaxed);
+        page_faults.store(thread_page_faults() - faults_base, std::memory_order_relaxed);
       }
       if (scan_callback != nullptr) scan_callback(scan_context);
     }
@@ -195,22 +215,52 @@ struct Pipeline::Impl {
     odometry_done.store(true);
   }
 
+  // Where `n` points can go in the key pool without touching the points of a scan the mapper
+  // has not released: right after the last scan handed, or at the start of the pool.
+  bool key_room(std::size_t n, std::size_t& at) const {
+    const std::uint64_t released = keys_released.load(std::memory_order_acquire);
+    at = 0;
+    if (released < keys_handed) {
+      const KeyScan& last = key_regions[(keys_handed - 1) % key_regions.size()];
+      at = last.offset + last.count;
+    }
+    if (at + n > key_pool.size()) at = 0;
+    for (std::uint64_t h = released; h < keys_handed; ++h) {
+      const KeyScan& r = key_regions[h % key_regions.size()];
+      if (r.offset < at + n && at < r.offset + r.count) return false;
+    }
+    return true;
+  }
+
   // Copies the scan's points for the mapper; in replay waits until the mapper has taken them
   // and applies the correction it had after that scan, as a single thread would.
   void hand_to_mapper(const ScanResult& res, Eigen::Isometry3d& correction) {
-    std::uint32_t k = 0;
-    if (!key_free.pop(k)) {
-      if (options.live || !wait_for([&] { return key_free.pop(k); })) {
-        mapper_dropped.fetch_add(1, std::memory_order_relaxed);
-        return;
+    const auto pts = odometry.scan_points();
+    const std::size_t n = std::min(pts.size(), key_pool.size());
+    std::size_t at = 0;
+    const auto ready = [&] {
+      if (!held_key) {
+        std::uint32_t k = 0;
+        if (key_free.pop(k)) held_key = k;
       }
+      return held_key && key_room(n, at);
+    };
+    if (!ready() && (options.live || !wait_for(ready))) {
+      mapper_dropped.fetch_add(1, std::memory_order_relaxed);
+      return;
     }
+    const std::uint32_t k = *held_key;
+    held_key.reset();
     KeyScan& key = keys[k];
     key.stamp = static_cast<double>(res.odometry.stamp.count()) * 1e-9;
     key.pose = res.odometry.pose;
-    const auto pts = odometry.scan_points();
-    key.points.assign(pts.begin(), pts.end());
+    key.offset = at;
+    key.count = n;
+    std::copy(pts.begin(), pts.begin() + static_cast<std::ptrdiff_t>(n),
+              key_pool.begin() + static_cast<std::ptrdiff_t>(at));
     key.sequence = res.sequence;
+    key_regions[keys_handed % key_regions.size()] = key;
+    ++keys_handed;
     key_full.push(k);
     if (!options.live) {
       Ack ack;
@@ -236,7 +286,10 @@ struct Pipeline::Impl {
       }
       KeyScan& key = keys[k];
       const auto t0 = Clock::now();
-      const bool closed = mapper->add(key.stamp, key.pose, key.points);
+      const bool closed =
+          mapper->add(key.stamp, key.pose,
+                      std::span<const Eigen::Vector3d>(key_pool).subspan(key.offset, key.count));
+      keys_released.fetch_add(1, std::memory_order_release);  // its points were copied
       if (closed) {
         keyframes.fetch_add(1);
         if (keyframe_callback) keyframe_callback(*mapper, ms_between(t0, Clock::now()));
@@ -375,6 +428,7 @@ PipelineStats Pipeline::stats() const {
   s.results_dropped = m.results_dropped.load();
   s.keyframes = m.keyframes.load();
   s.heap_allocations_in_odometry = m.allocations.load();
+  s.page_faults_in_odometry = m.page_faults.load();
   s.allocations_counted = m.counting.load();
   return s;
 }

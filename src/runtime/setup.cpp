@@ -86,6 +86,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.deskew = od.deskew;
   o.deskew_refinements = static_cast<int>(od.deskew_refinements);
   o.local_map_scans = static_cast<std::size_t>(od.local_map_scans);
+  o.local_map_points = static_cast<std::size_t>(od.local_map_points);
   o.max_map_voxels = static_cast<std::size_t>(od.max_map_voxels);
   o.min_points = static_cast<std::size_t>(od.min_points);
   o.max_scan_points = s.max_points;
@@ -107,6 +108,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   const auto& rt = c.runtime;
   s.pipeline.scan_ring = static_cast<std::size_t>(rt.scan_ring);
   s.pipeline.keyframe_ring = static_cast<std::size_t>(rt.keyframe_ring);
+  s.pipeline.keyframe_ring_points = static_cast<std::size_t>(rt.keyframe_ring_points);
   if (rt.realtime)
     s.pipeline.odometry_thread.fifo_priority = static_cast<int>(rt.odometry_priority);
   s.pipeline.odometry_thread.cpu = static_cast<int>(rt.odometry_cpu);

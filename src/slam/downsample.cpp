@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "cndt/core/cell.hpp"
+#include "cndt/core/resident.hpp"
 
 namespace cndt::slam {
 
@@ -16,10 +17,10 @@ std::size_t max_centroids_per_voxel(double voxel, double cell, std::size_t limit
 
 Downsampler::Downsampler(double cell, std::size_t capacity)
     : inv_cell_(1.0 / cell), capacity_(capacity) {
-  cells_.reserve(capacity);
+  core::reserve_resident(cells_, capacity, Cell{0, Eigen::Vector3d::Zero(), 0.0, 0});
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(16, capacity * 2));
   table_.assign(slots, -1);
-  used_slots_.reserve(capacity);
+  core::reserve_resident(used_slots_, capacity);
   mask_ = slots - 1;
 }
 

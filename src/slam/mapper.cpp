@@ -34,7 +34,7 @@ std::size_t dof_capacity(double voxel, double cell, std::size_t scans) {
 }  // namespace
 
 Mapper::KeyframeScan::KeyframeScan(const MapperOptions& o)
-    : grid({o.map.voxel_size, o.scan_voxels, o.map.min_points, o.map.eigen_floor, true}) {
+    : grid({o.map.voxel_size, o.scan_voxels, o.map.min_points, o.map.eigen_floor, true, false}) {
   points.reserve(o.max_scan_points);
   test.reserve(o.max_scan_points);
   mask.reserve(o.scan_voxels);
@@ -43,8 +43,8 @@ Mapper::KeyframeScan::KeyframeScan(const MapperOptions& o)
 Mapper::Mapper(const MapperOptions& o)
     : options_(o),
       map_(o.map),
-      first_occupancy_({o.similarity_voxel, o.scan_voxels, 1, 0.001, false}),
-      occupancy_({o.similarity_voxel, o.scan_voxels, 1, 0.001, false}),
+      first_occupancy_({o.similarity_voxel, o.scan_voxels, 1, 0.001, false, false}),
+      occupancy_({o.similarity_voxel, o.scan_voxels, 1, 0.001, false, false}),
       chi2_(dof_capacity(o.map.voxel_size, std::min(o.test_cell, o.point_cell), o.keyframe_scans)),
       test_sampler_(o.test_cell, o.max_scan_points) {
   scans_.reserve(std::max<std::size_t>(1, o.keyframe_scans));

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <optional>
 
+#include "cndt/core/resident.hpp"
+
 namespace cndt::slam {
 namespace {
 
@@ -42,21 +44,23 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
       lookup_cache_(o.max_scan_points),
       map_sampler_(o.map_cell, o.max_scan_points),
       scan_sampler_(o.scan_cell, o.max_scan_points) {
-  raw_.reserve(o.max_scan_points);
-  map_src_.reserve(o.max_scan_points);
-  scan_src_.reserve(o.max_scan_points);
-  test_.reserve(o.max_scan_points);
-  cv_points_.reserve(o.max_scan_points);
-  newest_src_.reserve(o.max_scan_points);
-  scratch_.reserve(o.max_scan_points);
+  // Every buffer resident from the start (core/resident.hpp).
+  const TimedPoint timed{Eigen::Vector3d::Zero(), 0.0};
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  for (auto* v : {&raw_, &map_src_, &scan_src_, &newest_src_}) {
+    core::reserve_resident(*v, o.max_scan_points, timed);
+  }
+  for (auto* v : {&test_, &cv_points_, &scratch_}) {
+    core::reserve_resident(*v, o.max_scan_points, zero);
+  }
   const std::size_t slots =
       o.reference == Reference::kPreviousScan ? 1 : std::max<std::size_t>(1, o.local_map_scans);
   history_.resize(slots);
-  for (auto& h : history_) h.reserve(o.max_scan_points);
-  mask_.reserve(o.max_map_voxels);
-  cv_.reserve(o.max_map_voxels);
-  residuals_.count.reserve(o.max_map_voxels);
-  residuals_.rss.reserve(o.max_map_voxels);
+  history_pool_.assign(std::max(o.local_map_points, o.max_scan_points), zero);  // written
+  core::reserve_resident(mask_, o.max_map_voxels);
+  core::reserve_resident(cv_, o.max_map_voxels);
+  core::reserve_resident(residuals_.count, o.max_map_voxels);
+  core::reserve_resident(residuals_.rss, o.max_map_voxels);
   for (double size : o.pyramid_voxel_sizes) {
     pyramid_.emplace_back(
         ndt::VoxelGridOptions{size, o.max_map_voxels / 4, 5, o.pyramid_eigen_floor, true});
@@ -101,14 +105,14 @@ core::Pose6 ConsensusOdometry::coarse_to_fine(const core::Pose6& x0) {
   return x;
 }
 
-void ConsensusOdometry::add_to_grids(const std::vector<Eigen::Vector3d>& points) {
+void ConsensusOdometry::add_to_grids(std::span<const Eigen::Vector3d> points) {
   for (const auto& p : points) {
     grid_.add(p);
     for (ndt::VoxelGrid& g : pyramid_) g.add(p);
   }
 }
 
-void ConsensusOdometry::remove_from_grids(const std::vector<Eigen::Vector3d>& points) {
+void ConsensusOdometry::remove_from_grids(std::span<const Eigen::Vector3d> points) {
   for (const auto& p : points) {
     grid_.remove(p);
     for (ndt::VoxelGrid& g : pyramid_) g.remove(p);
@@ -158,15 +162,45 @@ double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>
   return ndt::localization_consensus(grid_, cv, x.head<3>());
 }
 
+void ConsensusOdometry::drop_oldest() {
+  remove_from_grids(history_points(history_[history_head_]));
+  history_head_ = (history_head_ + 1) % history_.size();
+  --history_size_;
+}
+
+void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
+                                     const Eigen::Isometry3d& pose) {
+  const std::size_t capacity = history_pool_.size();
+  const std::size_t n = std::min(points.size(), capacity);
+  if (history_size_ == history_.size()) drop_oldest();
+  // Right after the newest scan, or at the start of the buffer when it does not fit before the
+  // end; the oldest scans that lie where it goes leave first.
+  std::size_t at = 0;
+  if (history_size_ > 0) {
+    const HistoryScan& newest = history_[(history_head_ + history_size_ - 1) % history_.size()];
+    at = newest.offset + newest.count;
+  }
+  if (at + n > capacity) at = 0;
+  while (history_size_ > 0) {
+    const HistoryScan& oldest = history_[history_head_];
+    if (oldest.offset >= at + n || oldest.offset + oldest.count <= at) break;
+    drop_oldest();
+  }
+  HistoryScan& h = history_[(history_head_ + history_size_) % history_.size()];
+  ++history_size_;
+  h = {at, n};
+  for (std::size_t i = 0; i < n; ++i) history_pool_[at + i] = pose * points[i];
+  add_to_grids(history_points(h));  // a full grid refuses points: compacted below
+  finalize_grids();
+}
+
 void ConsensusOdometry::replace_newest(const std::vector<Eigen::Vector3d>& points,
                                        const Eigen::Isometry3d& pose) {
+  // The newest scan leaves, and `points` take its place.
   const std::size_t newest = (history_head_ + history_size_ - 1) % history_.size();
-  std::vector<Eigen::Vector3d>& slot = history_[newest];
-  remove_from_grids(slot);
-  slot.clear();
-  for (const auto& p : points) slot.push_back(pose * p);
-  add_to_grids(slot);
-  finalize_grids();
+  remove_from_grids(history_points(history_[newest]));
+  --history_size_;
+  push_history(points, pose);
 }
 
 void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
@@ -180,17 +214,7 @@ void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
                    since.translation().norm() >= min_translation ||
                    Eigen::AngleAxisd(since.linear()).angle() >= options_.map_min_rotation;
   if (!due) return;
-  if (history_size_ == history_.size()) {  // the oldest scan leaves the reference
-    remove_from_grids(history_[history_head_]);
-    history_head_ = (history_head_ + 1) % history_.size();
-    --history_size_;
-  }
-  std::vector<Eigen::Vector3d>& slot = history_[(history_head_ + history_size_) % history_.size()];
-  ++history_size_;
-  slot.clear();
-  for (const auto& p : cv_points_) slot.push_back(pose * p);
-  add_to_grids(slot);  // a full grid refuses points: compacted below
-  finalize_grids();
+  push_history(cv_points_, pose);
   last_keyframe_pose_ = pose;
 }
 

@@ -42,6 +42,7 @@ struct Config {
     bool deskew = true;
     std::int64_t deskew_refinements = 2;
     std::int64_t local_map_scans = 60;
+    std::int64_t local_map_points = 1'500'000;
     std::int64_t max_map_voxels = 400'000;
     std::int64_t min_points = 200;
   } odometry;
@@ -59,6 +60,7 @@ struct Config {
   struct Runtime {
     std::int64_t scan_ring = 4;
     std::int64_t keyframe_ring = 64;
+    std::int64_t keyframe_ring_points = 1'500'000;
     bool realtime = false;
     std::int64_t odometry_priority = 50;
     std::int64_t odometry_cpu = -1;

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "cndt/core/resident.hpp"
+
 namespace cndt::core {
 
 /// How a point's return was classified by the sensor.
@@ -47,7 +49,7 @@ enum ScanFlags : std::uint32_t {
 /// One revolution. The point buffer's capacity is fixed when the scan is created; push() refuses
 /// points beyond it (counted in points_dropped) so a scan never allocates after construction.
 struct Scan {
-  explicit Scan(std::size_t capacity = 0) { points.reserve(capacity); }
+  explicit Scan(std::size_t capacity = 0) { reserve_resident(points, capacity); }
 
   std::chrono::nanoseconds stamp{0};  ///< absolute time (Unix epoch) of the scan's first firing
   std::chrono::nanoseconds end{0};    ///< absolute time of the scan's last firing

@@ -43,6 +43,9 @@ struct VoxelGridOptions {
   /// Voxels whose points lie on a nearly horizontal line (a single ring arc) get no Gaussian
   /// when set: such arcs move with the sensor and pull scan matching towards zero motion.
   bool drop_horizontal_lines = false;
+  /// The voxel array resident from the start (core/resident.hpp): for grids filled on a
+  /// real-time thread. Otherwise reserved only, and mapped in as it fills.
+  bool resident = true;
 };
 
 class VoxelGrid {

@@ -34,6 +34,9 @@ struct PipelineOptions {
   slam::MapperOptions mapper_options;
   std::size_t scan_ring = 4;       ///< scans waiting for the odometry
   std::size_t keyframe_ring = 64;  ///< scans waiting for the mapper
+  /// Points those scans hold together (one buffer; at least max_scan_points). Live: a scan
+  /// that does not fit is not handed to the mapper (mapper_dropped); replay waits for room.
+  std::size_t keyframe_ring_points = 1'500'000;
   std::size_t result_ring = 1024;  ///< results waiting for the consumer
   bool live = false;               ///< drop the oldest scan on a full ring (else wait)
   std::size_t warmup_scans = 20;   ///< allocations on the odometry thread count after these
@@ -62,6 +65,10 @@ struct PipelineStats {
   /// Heap allocations on the odometry thread after warmup_scans (the whole loop: matching,
   /// publishing, ring traffic).
   std::uint64_t heap_allocations_in_odometry = 0;
+  /// Page faults (minor and major) of the odometry thread over the same scans: every buffer is
+  /// written once at start-up (core/resident.hpp), so after warm-up the thread should neither
+  /// map in new memory nor grow the process's resident size.
+  std::uint64_t page_faults_in_odometry = 0;
   bool allocations_counted = false;  ///< warm-up is over
 };
 

@@ -30,6 +30,9 @@ struct OdometryOptions {
   /// or turned map_min_rotation since the last one that did (always with kPreviousScan), so a
   /// slow or stopped vehicle keeps a map spread over distance.
   std::size_t local_map_scans = 60;
+  /// Points the local map's scans hold together (one buffer, allocated once; at least
+  /// max_scan_points). When a new scan does not fit, the oldest scans leave until it does.
+  std::size_t local_map_points = 1'500'000;
   double map_min_translation = 1.0;  ///< m
   double map_min_rotation = 0.035;   ///< rad (2 deg)
   /// Until the local map holds this many scans, they enter after map_warmup_translation.
@@ -118,6 +121,9 @@ class ConsensusOdometry {
   /// estimate), in the sensor frame at its stamp: what the mapper takes. Stale after a skipped
   /// scan.
   [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const { return cv_points_; }
+  /// Scans the reference holds now (local map: at most local_map_scans, and fewer when their
+  /// points fill local_map_points).
+  [[nodiscard]] std::size_t reference_scans() const { return history_size_; }
 
  private:
   // Deskews `in` (sensor frame, timed) with `motion` over `period_s` into `out`: every point
@@ -131,8 +137,8 @@ class ConsensusOdometry {
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
   core::Pose6 search_start(const core::Pose6& x0);    // best of a grid of horizontal offsets
-  void add_to_grids(const std::vector<Eigen::Vector3d>& points);
-  void remove_from_grids(const std::vector<Eigen::Vector3d>& points);
+  void add_to_grids(std::span<const Eigen::Vector3d> points);
+  void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
   // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res.
   bool match(const core::Pose6& x0, OdometryResult& res);
@@ -150,8 +156,18 @@ class ConsensusOdometry {
   std::vector<TimedPoint> scan_src_;        // map_src_ at scan_cell
   std::vector<Eigen::Vector3d> test_;       // scan_src_ deskewed: matched
   std::vector<Eigen::Vector3d> cv_points_;  // map_src_ deskewed: Cv, and added to the reference
-  // Reference scans in the odometry frame: a ring of local_map_scans slots, allocated once.
-  std::vector<std::vector<Eigen::Vector3d>> history_;
+  // Reference scans in the odometry frame: a ring of up to local_map_scans entries, oldest
+  // first, whose points lie one after the other in a circular buffer of local_map_points.
+  struct HistoryScan {
+    std::size_t offset = 0, count = 0;
+  };
+  std::span<const Eigen::Vector3d> history_points(const HistoryScan& h) const {
+    return std::span<const Eigen::Vector3d>(history_pool_).subspan(h.offset, h.count);
+  }
+  void drop_oldest();  // the oldest scan leaves the reference
+  void push_history(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
+  std::vector<Eigen::Vector3d> history_pool_;
+  std::vector<HistoryScan> history_;
   std::size_t history_head_ = 0, history_size_ = 0;
   Eigen::Isometry3d last_keyframe_pose_ = Eigen::Isometry3d::Identity();
   // The newest reference scan was added without a motion estimate (first scan): kept in the
