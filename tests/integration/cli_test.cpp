@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cctype>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -126,6 +128,73 @@ TEST(CliReplay, WritesTrajectoryScansAndSummaryThatEvalReads) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("\"ate_rmse_m\""), std::string::npos);
   EXPECT_NE(r.output.find("\"matched\": 5"), std::string::npos) << r.output;
+}
+
+// Every text a replay writes, lower-cased: a NaN or an infinity shows as "nan" or "inf".
+std::string replay_outputs(const std::string& dir) {
+  std::string all;
+  for (const char* f : {"trajectory.tum", "scans.csv", "summary.json", "can.log"}) {
+    std::stringstream s;
+    s << std::ifstream(dir + "/" + f).rdbuf();
+    all += s.str();
+  }
+  for (char& c : all) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return all;
+}
+
+// Scan flags, one per row of scans.csv (the last field).
+std::vector<unsigned long> scan_flags(const std::string& dir) {
+  std::ifstream csv(dir + "/scans.csv");
+  std::string line;
+  std::getline(csv, line);
+  std::vector<unsigned long> flags;
+  while (std::getline(csv, line)) flags.push_back(std::stoul(line.substr(line.rfind(',') + 1)));
+  return flags;
+}
+
+// Input the odometry cannot make a good pose of: a clear error, or poses flagged and reported
+// with Cm 0; never a NaN or an infinity in any output.
+TEST(CliReplay, BadInputGivesAnErrorOrFlaggedPosesAndNeverNaN) {
+  cndt::test::TempDir dir;
+  // A capture with no packet at all: an error naming it, exit 65, an empty result.
+  {
+    std::ofstream pcap(dir.file("empty.pcap"), std::ios::binary);
+    const std::array<std::uint32_t, 6> header = {0xA1B2C3D4u, 0x00040002u, 0, 0, 65535, 1};
+    pcap.write(reinterpret_cast<const char*>(header.data()), sizeof(header));
+  }
+  CliRun r = run("replay " + dir.file("empty.pcap") + " --out " + dir.file("e"));
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("no scan in"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("empty.pcap"), std::string::npos) << r.output;
+  EXPECT_EQ(scan_flags(dir.file("e")).size(), 0u);
+  // 0.1 s: a partial revolution (skipped) and a second one cut by the end of the capture.
+  ASSERT_EQ(run("sim --scene street --duration 0.1 --out " + dir.file("short")).code, 0);
+  r = run("replay " + dir.file("short/capture.pcap") + " --out " + dir.file("s"));
+  EXPECT_EQ(r.code, 0) << r.output;
+  auto flags = scan_flags(dir.file("s"));
+  ASSERT_EQ(flags.size(), 2u);
+  EXPECT_NE(flags[0] & 32UL, 0UL);  // skipped
+  EXPECT_NE(flags[1] & 16UL, 0UL);  // incomplete
+  // Nine packets in ten lost: scans of a few hundred points, too few to match, or matched but
+  // flagged degenerate with Cm 0.
+  ASSERT_EQ(run("sim --scene street --duration 2 --drop-rate 0.9 --out " + dir.file("sparse")).code,
+            0);
+  r = run("replay " + dir.file("sparse/capture.pcap") + " --out " + dir.file("p"));
+  EXPECT_EQ(r.code, 0) << r.output;
+  flags = scan_flags(dir.file("p"));
+  ASSERT_GE(flags.size(), 15u);
+  int flagged = 0;
+  for (unsigned long f : flags) flagged += (f & (4UL | 8UL)) != 0 ? 1 : 0;
+  EXPECT_GE(flagged, static_cast<int>(flags.size()) - 2);
+  // A corridor: walls, floor and ceiling around the sensor; most poses flagged degenerate.
+  ASSERT_EQ(run("sim --scene corridor --duration 3 --out " + dir.file("corridor")).code, 0);
+  r = run("replay " + dir.file("corridor/capture.pcap") + " --out " + dir.file("c"));
+  EXPECT_EQ(r.code, 0) << r.output;
+  for (const char* d : {"e", "s", "p", "c"}) {
+    const std::string out = replay_outputs(dir.file(d));
+    EXPECT_EQ(out.find("nan"), std::string::npos) << d;
+    EXPECT_EQ(out.find("inf"), std::string::npos) << d;
+  }
 }
 
 TEST(CliEval, BadTrajectoryFilesNameFileAndLine) {
