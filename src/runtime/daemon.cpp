@@ -197,7 +197,8 @@ int run_daemon(const config::Config& c) {
         ps.scans_done, ps.scans_done - last_scans, ps.scans_dropped, snap.driver.decoded_packets,
         rejects_text(snap.driver), snap.lost_packets, snap.udp_queue_full, window, valid, degraded,
         lost, ps.keyframes,
-        ps.allocations_counted ? fmt::format("{}", ps.heap_allocations_in_odometry)
+        ps.allocations_counted ? fmt::format("{}, page faults {}", ps.heap_allocations_in_odometry,
+                                             ps.page_faults_in_odometry)
                                : std::string("(warming up)"),
         can_text, udp_text);
     spdlog::info("{}{}", final_line ? "final: " : "", line);
