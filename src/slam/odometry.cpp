@@ -174,16 +174,22 @@ void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
   const std::size_t n = std::min(points.size(), capacity);
   if (history_size_ == history_.size()) drop_oldest();
   // Right after the newest scan, or at the start of the buffer when it does not fit before the
-  // end; the oldest scans that lie where it goes leave first.
+  // end. The scans lie in the buffer in the order they came, so the oldest ones are those
+  // after the newest: they leave, oldest first, while they lie where the new scan goes or, when
+  // it goes to the start, in the end of the buffer it skips (older than any at the start).
   std::size_t at = 0;
   if (history_size_ > 0) {
     const HistoryScan& newest = history_[(history_head_ + history_size_ - 1) % history_.size()];
     at = newest.offset + newest.count;
   }
-  if (at + n > capacity) at = 0;
+  const std::size_t skipped_from = at;
+  const bool wraps = at + n > capacity;
+  if (wraps) at = 0;
   while (history_size_ > 0) {
     const HistoryScan& oldest = history_[history_head_];
-    if (oldest.offset >= at + n || oldest.offset + oldest.count <= at) break;
+    const bool overlaps = oldest.offset < at + n && at < oldest.offset + oldest.count;
+    const bool skipped = wraps && oldest.offset >= skipped_from;
+    if (!overlaps && !skipped) break;
     drop_oldest();
   }
   HistoryScan& h = history_[(history_head_ + history_size_) % history_.size()];
@@ -192,6 +198,13 @@ void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
   for (std::size_t i = 0; i < n; ++i) history_pool_[at + i] = pose * points[i];
   add_to_grids(history_points(h));  // a full grid refuses points: compacted below
   finalize_grids();
+}
+
+void ConsensusOdometry::reference_points(std::vector<Eigen::Vector3d>& out) const {
+  for (std::size_t i = 0; i < history_size_; ++i) {
+    const auto pts = history_points(history_[(history_head_ + i) % history_.size()]);
+    out.insert(out.end(), pts.begin(), pts.end());
+  }
 }
 
 void ConsensusOdometry::replace_newest(const std::vector<Eigen::Vector3d>& points,

@@ -124,6 +124,10 @@ class ConsensusOdometry {
   /// Scans the reference holds now (local map: at most local_map_scans, and fewer when their
   /// points fill local_map_points).
   [[nodiscard]] std::size_t reference_scans() const { return history_size_; }
+  /// The reference grid and the points of the scans it holds now (odometry frame), appended to
+  /// `out`: the grid's sums are those of exactly these points.
+  [[nodiscard]] const ndt::VoxelGrid& reference_grid() const { return grid_; }
+  void reference_points(std::vector<Eigen::Vector3d>& out) const;
 
  private:
   // Deskews `in` (sensor frame, timed) with `motion` over `period_s` into `out`: every point
