@@ -8,6 +8,7 @@
 #include <optional>
 #include <span>
 
+#include "cndt/core/ring_region.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
 
 namespace cndt::runtime {
@@ -22,11 +23,11 @@ struct ScanSlot {
   explicit ScanSlot(std::size_t capacity) : scan(capacity) {}
 };
 
-// A scan for the mapper; its points are key_pool[offset, offset + count).
+// A scan for the mapper; its points are key_pool[points.offset, points.end()).
 struct KeyScan {
   double stamp = 0.0;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  std::size_t offset = 0, count = 0;
+  core::RingRegion points;
   std::uint64_t sequence = 0;
 };
 
@@ -64,9 +65,9 @@ struct Pipeline::Impl {
   // The mapper takes scans in the order they were handed, so the odometry thread knows which
   // regions are still in use from how many scans the mapper has released.
   std::vector<Eigen::Vector3d> key_pool;
-  std::vector<KeyScan> key_regions;       // odometry thread: by hand number modulo keys.size()
-  std::uint64_t keys_handed = 0;          // odometry thread
-  std::optional<std::uint32_t> held_key;  // odometry thread: a free slot taken, not yet used
+  std::vector<core::RingRegion> key_regions;  // odometry thread: by hand number modulo keys.size()
+  std::uint64_t keys_handed = 0;              // odometry thread
+  std::optional<std::uint32_t> held_key;      // odometry thread: a free slot taken, not yet used
   std::atomic<std::uint64_t> keys_released{0};
   Ring<Ack> acks;
   Ring<ScanResult> results;
@@ -217,17 +218,13 @@ struct Pipeline::Impl {
 
   // Where `n` points can go in the key pool without touching the points of a scan the mapper
   // has not released: right after the last scan handed, or at the start of the pool.
-  bool key_room(std::size_t n, std::size_t& at) const {
+  bool key_room(std::size_t n, core::RingRegion& region) const {
     const std::uint64_t released = keys_released.load(std::memory_order_acquire);
-    at = 0;
-    if (released < keys_handed) {
-      const KeyScan& last = key_regions[(keys_handed - 1) % key_regions.size()];
-      at = last.offset + last.count;
-    }
-    if (at + n > key_pool.size()) at = 0;
+    const std::size_t end =
+        released < keys_handed ? key_regions[(keys_handed - 1) % key_regions.size()].end() : 0;
+    region = core::next_region(end, n, key_pool.size());
     for (std::uint64_t h = released; h < keys_handed; ++h) {
-      const KeyScan& r = key_regions[h % key_regions.size()];
-      if (r.offset < at + n && at < r.offset + r.count) return false;
+      if (key_regions[h % key_regions.size()].overlaps(region)) return false;
     }
     return true;
   }
@@ -237,13 +234,13 @@ struct Pipeline::Impl {
   void hand_to_mapper(const ScanResult& res, Eigen::Isometry3d& correction) {
     const auto pts = odometry.scan_points();
     const std::size_t n = std::min(pts.size(), key_pool.size());
-    std::size_t at = 0;
+    core::RingRegion region;
     const auto ready = [&] {
       if (!held_key) {
         std::uint32_t k = 0;
         if (key_free.pop(k)) held_key = k;
       }
-      return held_key && key_room(n, at);
+      return held_key && key_room(n, region);
     };
     if (!ready() && (options.live || !wait_for(ready))) {
       mapper_dropped.fetch_add(1, std::memory_order_relaxed);
@@ -254,12 +251,11 @@ struct Pipeline::Impl {
     KeyScan& key = keys[k];
     key.stamp = static_cast<double>(res.odometry.stamp.count()) * 1e-9;
     key.pose = res.odometry.pose;
-    key.offset = at;
-    key.count = n;
+    key.points = region;
     std::copy(pts.begin(), pts.begin() + static_cast<std::ptrdiff_t>(n),
-              key_pool.begin() + static_cast<std::ptrdiff_t>(at));
+              key_pool.begin() + static_cast<std::ptrdiff_t>(region.offset));
     key.sequence = res.sequence;
-    key_regions[keys_handed % key_regions.size()] = key;
+    key_regions[keys_handed % key_regions.size()] = region;
     ++keys_handed;
     key_full.push(k);
     if (!options.live) {
@@ -286,9 +282,9 @@ struct Pipeline::Impl {
       }
       KeyScan& key = keys[k];
       const auto t0 = Clock::now();
-      const bool closed =
-          mapper->add(key.stamp, key.pose,
-                      std::span<const Eigen::Vector3d>(key_pool).subspan(key.offset, key.count));
+      const bool closed = mapper->add(
+          key.stamp, key.pose,
+          std::span<const Eigen::Vector3d>(key_pool).subspan(key.points.offset, key.points.count));
       keys_released.fetch_add(1, std::memory_order_release);  // its points were copied
       if (closed) {
         keyframes.fetch_add(1);

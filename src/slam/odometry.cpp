@@ -177,26 +177,19 @@ void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
   // end. The scans lie in the buffer in the order they came, so the oldest ones are those
   // after the newest: they leave, oldest first, while they lie where the new scan goes or, when
   // it goes to the start, in the end of the buffer it skips (older than any at the start).
-  std::size_t at = 0;
-  if (history_size_ > 0) {
-    const HistoryScan& newest = history_[(history_head_ + history_size_ - 1) % history_.size()];
-    at = newest.offset + newest.count;
-  }
-  const std::size_t skipped_from = at;
-  const bool wraps = at + n > capacity;
-  if (wraps) at = 0;
+  const std::size_t end =
+      history_size_ > 0 ? history_[(history_head_ + history_size_ - 1) % history_.size()].end() : 0;
+  const core::RingRegion region = core::next_region(end, n, capacity);
+  const bool wraps = region.offset != end;
   while (history_size_ > 0) {
-    const HistoryScan& oldest = history_[history_head_];
-    const bool overlaps = oldest.offset < at + n && at < oldest.offset + oldest.count;
-    const bool skipped = wraps && oldest.offset >= skipped_from;
-    if (!overlaps && !skipped) break;
+    const core::RingRegion& oldest = history_[history_head_];
+    if (!oldest.overlaps(region) && !(wraps && oldest.offset >= end)) break;
     drop_oldest();
   }
-  HistoryScan& h = history_[(history_head_ + history_size_) % history_.size()];
+  history_[(history_head_ + history_size_) % history_.size()] = region;
   ++history_size_;
-  h = {at, n};
-  for (std::size_t i = 0; i < n; ++i) history_pool_[at + i] = pose * points[i];
-  add_to_grids(history_points(h));  // a full grid refuses points: compacted below
+  for (std::size_t i = 0; i < n; ++i) history_pool_[region.offset + i] = pose * points[i];
+  add_to_grids(history_points(region));  // a full grid refuses points: compacted below
   finalize_grids();
 }
 

@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "cndt/core/ring_region.hpp"
 #include "cndt/core/scan.hpp"
 #include "cndt/ndt/consensus.hpp"
 #include "cndt/ndt/newton.hpp"
@@ -162,16 +163,13 @@ class ConsensusOdometry {
   std::vector<Eigen::Vector3d> cv_points_;  // map_src_ deskewed: Cv, and added to the reference
   // Reference scans in the odometry frame: a ring of up to local_map_scans entries, oldest
   // first, whose points lie one after the other in a circular buffer of local_map_points.
-  struct HistoryScan {
-    std::size_t offset = 0, count = 0;
-  };
-  std::span<const Eigen::Vector3d> history_points(const HistoryScan& h) const {
+  std::span<const Eigen::Vector3d> history_points(const core::RingRegion& h) const {
     return std::span<const Eigen::Vector3d>(history_pool_).subspan(h.offset, h.count);
   }
   void drop_oldest();  // the oldest scan leaves the reference
   void push_history(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   std::vector<Eigen::Vector3d> history_pool_;
-  std::vector<HistoryScan> history_;
+  std::vector<core::RingRegion> history_;
   std::size_t history_head_ = 0, history_size_ = 0;
   Eigen::Isometry3d last_keyframe_pose_ = Eigen::Isometry3d::Identity();
   // The newest reference scan was added without a motion estimate (first scan): kept in the
