@@ -7,10 +7,9 @@
 
 #include <vector>
 
-#include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/mapper.hpp"
 #include "cndt/slam/odometry.hpp"
-#include "cndt/vlp16/driver.hpp"
+#include "sim_scans.hpp"
 
 namespace {
 
@@ -23,26 +22,14 @@ struct OdometryScan {
 // 3.2 s of street: the odometry's poses and deskewed points of about 30 scans.
 const std::vector<OdometryScan>& scans() {
   static const std::vector<OdometryScan> out = [] {
-    const cndt::sim::Scene scene = cndt::sim::build_scene(cndt::sim::SceneKind::kStreet, 3.2, 4, 1);
-    cndt::sim::LidarSimOptions o;
-    o.duration_s = 3.2;
-    o.seed = 1;
-    cndt::sim::LidarSimulator sim(scene, o);
-    cndt::vlp16::Driver driver({});
     cndt::slam::ConsensusOdometry odometry({});
     std::vector<OdometryScan> v;
-    auto sink = [&](cndt::core::Scan& s) {
+    cndt::test::simulate_scans(cndt::sim::SceneKind::kStreet, 3.2, 4, 1, [&](cndt::core::Scan& s) {
       const auto r = odometry.process(s);
       if ((r.flags & cndt::slam::kOdomSkipped) != 0) return;
       const auto pts = odometry.scan_points();
       v.push_back({static_cast<double>(s.stamp.count()) * 1e-9, r.pose, {pts.begin(), pts.end()}});
-    };
-    cndt::sim::SimPacket p;
-    while (sim.next(p)) {
-      driver.on_data(cndt::core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns),
-                     sink);
-    }
-    driver.finish(sink);
+    });
     return v;
   }();
   return out;

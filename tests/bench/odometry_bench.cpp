@@ -7,33 +7,16 @@
 #include <chrono>
 #include <vector>
 
-#include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/odometry.hpp"
-#include "cndt/vlp16/driver.hpp"
+#include "sim_scans.hpp"
 
 namespace {
 
 constexpr double kSeconds = 10.0;
 
 const std::vector<cndt::core::Scan>& street_scans() {
-  static const std::vector<cndt::core::Scan> scans = [] {
-    const cndt::sim::Scene scene =
-        cndt::sim::build_scene(cndt::sim::SceneKind::kStreet, kSeconds, 4, 1);
-    cndt::sim::LidarSimOptions o;
-    o.duration_s = kSeconds;
-    o.seed = 1;
-    cndt::sim::LidarSimulator sim(scene, o);
-    cndt::vlp16::Driver driver({});
-    std::vector<cndt::core::Scan> out;
-    auto sink = [&](cndt::core::Scan& s) { out.push_back(s); };
-    cndt::sim::SimPacket p;
-    while (sim.next(p)) {
-      driver.on_data(cndt::core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns),
-                     sink);
-    }
-    driver.finish(sink);
-    return out;
-  }();
+  static const std::vector<cndt::core::Scan> scans =
+      cndt::test::simulate_scans(cndt::sim::SceneKind::kStreet, kSeconds, 1);
   return scans;
 }
 

@@ -13,36 +13,17 @@
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/sweep.hpp"
 #include "cndt/slam/trajectory_eval.hpp"
-#include "cndt/vlp16/driver.hpp"
 #include "shared_data.hpp"
+#include "sim_scans.hpp"
 #include "temp_dir.hpp"
 
 namespace cndt::slam {
 namespace {
 
-// Simulates a drive through `kind` and hands every decoded scan to `sink`; returns the
-// simulator's scan starts (ground truth).
-template <class Sink>
-std::vector<sim::ScanStart> drive_scene(sim::SceneKind kind, double seconds, int movers,
-                                        std::uint64_t seed, Sink&& sink) {
-  const sim::Scene scene = sim::build_scene(kind, seconds, movers, seed);
-  sim::LidarSimOptions so;
-  so.duration_s = seconds;
-  so.seed = seed;
-  sim::LidarSimulator simulator(scene, so);
-  vlp16::Driver driver({});
-  sim::SimPacket p;
-  while (simulator.next(p)) {
-    driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
-  }
-  driver.finish(sink);
-  return simulator.scan_starts();
-}
-
 template <class Sink>
 std::vector<sim::ScanStart> drive_street(double seconds, int movers, std::uint64_t seed,
                                          Sink&& sink) {
-  return drive_scene(sim::SceneKind::kStreet, seconds, movers, seed, sink);
+  return test::simulate_scans(sim::SceneKind::kStreet, seconds, movers, seed, sink);
 }
 
 // Share of the matched scans of a drive flagged degenerate; checks that each flagged pose is
@@ -50,7 +31,7 @@ std::vector<sim::ScanStart> drive_street(double seconds, int movers, std::uint64
 double degenerate_share(sim::SceneKind kind, double seconds) {
   ConsensusOdometry odometry({});
   int matched = 0, degenerate = 0;
-  drive_scene(kind, seconds, 2, 1, [&](core::Scan& scan) {
+  test::simulate_scans(kind, seconds, 2, 1, [&](core::Scan& scan) {
     const OdometryResult r = odometry.process(scan);
     if ((r.flags & (kOdomSkipped | kOdomFirstScan | kOdomTooFewPoints)) != 0) return;
     ++matched;

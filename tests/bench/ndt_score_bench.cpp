@@ -1,0 +1,71 @@
+// The NDT scoring kernel alone: one ndt_score call on a street scan's matched points (0.5 m
+// cells) against the odometry's local map after 40 scans, at the odometry's own pose for it.
+// Per call: with and without derivatives, 7 voxels per point and 1, with the lookup cache warm
+// (Newton iterations after the first) and without it (the first scoring of a scan).
+// Run: build/release/tests/bench/ndt_score_bench
+#include <benchmark/benchmark.h>
+
+#include <vector>
+
+#include "cndt/ndt/ndt_score.hpp"
+#include "cndt/slam/odometry.hpp"
+#include "sim_scans.hpp"
+
+namespace {
+
+struct Fixture {
+  cndt::slam::ConsensusOdometry odometry{cndt::slam::OdometryOptions{}};
+  std::vector<Eigen::Vector3d> points;  // sensor frame, 0.5 m cells
+  cndt::core::Pose6 pose;
+
+  Fixture() {
+    const std::vector<cndt::core::Scan> scans =
+        cndt::test::simulate_scans(cndt::sim::SceneKind::kStreet, 4.2, 1);
+    // The last whole scan (the capture ends mid-revolution) is matched against the map of those
+    // before it: score it the same way.
+    for (std::size_t i = 0; i + 2 < scans.size(); ++i) odometry.process(scans[i]);
+    const cndt::slam::OdometryResult last = odometry.process(scans[scans.size() - 2]);
+    pose = cndt::core::to_pose6(last.pose);
+    cndt::slam::Downsampler cells(0.5, odometry.options().max_scan_points);
+    const auto fine = odometry.scan_points();
+    cells.run(std::vector<Eigen::Vector3d>(fine.begin(), fine.end()), points);
+  }
+};
+
+const Fixture& fixture() {
+  static const Fixture f;
+  return f;
+}
+
+void Score(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const bool derivatives = state.range(0) != 0;
+  const auto neighbours = static_cast<cndt::ndt::Neighbours>(state.range(1));
+  const bool warm = state.range(2) != 0;
+  const cndt::ndt::VoxelGrid& grid = f.odometry.reference_grid();
+  cndt::ndt::LookupCache cache(f.points.size());
+  std::size_t matched = 0;
+  for (auto _ : state) {
+    cndt::ndt::LookupCache* c = warm ? &cache : nullptr;
+    const cndt::ndt::ScoreResult r =
+        cndt::ndt::ndt_score(grid, f.points, f.pose, derivatives, nullptr, neighbours, c);
+    matched = r.matched;
+    benchmark::DoNotOptimize(r.hessian);
+  }
+  state.counters["points"] = static_cast<double>(f.points.size());
+  state.counters["terms"] = static_cast<double>(matched);
+  state.counters["voxels"] = static_cast<double>(grid.size());
+  state.counters["ns_per_term"] =
+      benchmark::Counter(static_cast<double>(matched) * static_cast<double>(state.iterations()),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+// Arguments: derivatives, voxels per point, cache warm.
+BENCHMARK(Score)
+    ->ArgNames({"derivatives", "voxels", "warm"})
+    ->Args({1, 7, 1})
+    ->Args({0, 7, 1})
+    ->Args({1, 7, 0})
+    ->Args({1, 1, 1})
+    ->Unit(benchmark::kMicrosecond);
+
+}  // namespace
