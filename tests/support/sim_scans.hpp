@@ -1,5 +1,5 @@
 // Scans of a simulated VLP-16 drive, decoded by the driver as a live run would decode them: for
-// benchmarks that need realistic scans without a capture file.
+// benchmarks and tests that need realistic scans without a capture file.
 #pragma once
 
 #include <chrono>
