@@ -111,7 +111,9 @@ TEST(Daemon, RunsAsSystemdServiceFedOverUdp) {
   posix_spawn_file_actions_destroy(&fa);
 
   // A simulated street, sent at the sensor's rate (one packet every 1327 us) once the daemon
-  // listens.
+  // listens. It says so in its log right after binding the socket (what arrives before its
+  // receiver thread runs waits in the socket buffer). A fixed wait is not enough: on a busy
+  // machine start-up took longer than 1.5 s, and the first 6 scans went to a closed port.
   const auto scene = cndt::sim::build_scene(cndt::sim::SceneKind::kStreet, 6.0, 4, 1);
   cndt::sim::LidarSimOptions so;
   so.duration_s = 6.0;
@@ -119,7 +121,20 @@ TEST(Daemon, RunsAsSystemdServiceFedOverUdp) {
   std::vector<std::array<std::uint8_t, 1206>> packets;
   cndt::sim::SimPacket p;
   while (simulator.next(p)) packets.push_back(p.payload);
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const auto listening = [&] {
+    std::ifstream in(log_path);
+    const std::string text((std::istreambuf_iterator<char>(in)), {});
+    return text.find("receiving VLP-16 packets on UDP") != std::string::npos;
+  };
+  const auto spawned = std::chrono::steady_clock::now();
+  while (!listening() && std::chrono::steady_clock::now() - spawned < std::chrono::seconds(60)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  if (!listening()) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, nullptr, 0);
+    FAIL() << "cndtd did not listen on UDP within 60 s";
+  }
   auto tx = cndt::net::UdpSender::open("127.0.0.1", data_port);
   ASSERT_TRUE(tx);
   std::vector<std::string> messages;  // read as systemd would, while the daemon runs
