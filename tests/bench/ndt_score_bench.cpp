@@ -27,8 +27,7 @@ struct Fixture {
     const cndt::slam::OdometryResult last = odometry.process(scans[scans.size() - 2]);
     pose = cndt::core::to_pose6(last.pose);
     cndt::slam::Downsampler cells(0.5, odometry.options().max_scan_points);
-    const auto fine = odometry.scan_points();
-    cells.run(std::vector<Eigen::Vector3d>(fine.begin(), fine.end()), points);
+    cells.run(odometry.scan_points(), points);
   }
 };
 

@@ -21,6 +21,7 @@
 #include "cndt/output/udp_codec.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/map_file.hpp"
+#include "slurp.hpp"
 #include "temp_dir.hpp"
 
 extern char** environ;
@@ -122,9 +123,7 @@ TEST(Daemon, RunsAsSystemdServiceFedOverUdp) {
   cndt::sim::SimPacket p;
   while (simulator.next(p)) packets.push_back(p.payload);
   const auto listening = [&] {
-    std::ifstream in(log_path);
-    const std::string text((std::istreambuf_iterator<char>(in)), {});
-    return text.find("receiving VLP-16 packets on UDP") != std::string::npos;
+    return cndt::test::slurp(log_path).find("receiving VLP-16 packets on UDP") != std::string::npos;
   };
   const auto spawned = std::chrono::steady_clock::now();
   while (!listening() && std::chrono::steady_clock::now() - spawned < std::chrono::seconds(60)) {
@@ -163,8 +162,7 @@ TEST(Daemon, RunsAsSystemdServiceFedOverUdp) {
   ASSERT_EQ(::kill(pid, SIGTERM), 0);
   int status = 0;
   ASSERT_EQ(::waitpid(pid, &status, 0), pid);
-  std::ifstream log_in(log_path);
-  const std::string log((std::istreambuf_iterator<char>(log_in)), {});
+  const std::string log = cndt::test::slurp(log_path);
   ASSERT_TRUE(WIFEXITED(status)) << log;
   EXPECT_EQ(WEXITSTATUS(status), 0) << log;
 
@@ -253,8 +251,8 @@ TEST(Daemon, ServiceUnitExposureIsAtMostTwo) {
   RecordProperty("exposure", m[1].str());
   EXPECT_LE(exposure, 2.0) << r.output;
   // What the unit promises beyond the score.
-  std::ifstream unit(std::string(CNDT_SOURCE_DIR) + "/systemd/cndtd.service");
-  const std::string text((std::istreambuf_iterator<char>(unit)), {});
+  const std::string text =
+      cndt::test::slurp(std::string(CNDT_SOURCE_DIR) + "/systemd/cndtd.service");
   for (const char* line :
        {"Type=notify", "WatchdogSec=", "Restart=on-failure", "DynamicUser=yes",
         "StateDirectory=cndtd", "ProtectSystem=strict",

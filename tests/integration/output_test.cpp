@@ -15,11 +15,13 @@
 #include "cndt/output/crc.hpp"
 #include "cndt/output/dbc.hpp"
 #include "cndt/output/udp_codec.hpp"
+#include "slurp.hpp"
 #include "temp_dir.hpp"
 
 namespace {
 
 using cndt::test::run;
+using cndt::test::slurp;
 
 struct TumPose {
   double t = 0;
@@ -221,11 +223,6 @@ TEST_F(PoseOutput, ListenRejectsCorruptDatagramsAndCountsGaps) {
 }  // namespace
 
 namespace {
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
 
 // Two replays through the threaded runtime, with the mapper: the same bytes.
 TEST_F(PoseOutput, ReplaysAreByteIdentical) {

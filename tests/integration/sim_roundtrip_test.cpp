@@ -11,6 +11,7 @@
 #include "cndt/cli/capture.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/vlp16/decoder.hpp"
+#include "slurp.hpp"
 #include "temp_dir.hpp"
 
 namespace cndt::sim {
@@ -183,11 +184,6 @@ TEST(SimRoundTrip, RotationSpeedIsHonoured) {
   EXPECT_NEAR(static_cast<double>(d.report.scans.size()), 41.0, 1.0);
 }
 
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
-
 TEST(SimRoundTrip, DeterministicPerSeed) {
   test::TempDir a, b, c;
   LidarSimOptions o;
@@ -198,12 +194,12 @@ TEST(SimRoundTrip, DeterministicPerSeed) {
   o.seed = 5;
   ASSERT_TRUE(write_simulation(s1, o, a.path().string()));
   ASSERT_TRUE(write_simulation(s2, o, b.path().string()));
-  EXPECT_EQ(slurp(a.file("capture.pcap")), slurp(b.file("capture.pcap")));
-  EXPECT_EQ(slurp(a.file("groundtruth.tum")), slurp(b.file("groundtruth.tum")));
+  EXPECT_EQ(test::slurp(a.file("capture.pcap")), test::slurp(b.file("capture.pcap")));
+  EXPECT_EQ(test::slurp(a.file("groundtruth.tum")), test::slurp(b.file("groundtruth.tum")));
   o.seed = 6;
   const Scene s3 = build_scene(SceneKind::kCampus, 1.0, 4, 6);
   ASSERT_TRUE(write_simulation(s3, o, c.path().string()));
-  EXPECT_NE(slurp(a.file("capture.pcap")), slurp(c.file("capture.pcap")));
+  EXPECT_NE(test::slurp(a.file("capture.pcap")), test::slurp(c.file("capture.pcap")));
 }
 
 // Largest change of the sensor's yaw rate from one 50 ms step to the next, deg/s^2. A steered
