@@ -165,12 +165,13 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
       Eigen::Vector3d a;
       const double e = gaussian_term(*vox, v, a);
       r.score -= e;  // eq 5
-      ++r.matched;
+      ++r.terms;
       any = true;
       if (!derivatives) continue;
       b += e * a;
       M.noalias() += e * (vox->inv_cov - a * a.transpose());
     }
+    if (any) ++r.matched;
     if (!derivatives || !any) continue;
     // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]
     Eigen::Matrix3d Jr;

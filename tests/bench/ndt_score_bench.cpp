@@ -43,19 +43,19 @@ void Score(benchmark::State& state) {
   const bool warm = state.range(2) != 0;
   const cndt::ndt::VoxelGrid& grid = f.odometry.reference_grid();
   cndt::ndt::LookupCache cache(f.points.size());
-  std::size_t matched = 0;
+  std::size_t terms = 0;
   for (auto _ : state) {
     cndt::ndt::LookupCache* c = warm ? &cache : nullptr;
     const cndt::ndt::ScoreResult r =
         cndt::ndt::ndt_score(grid, f.points, f.pose, derivatives, nullptr, neighbours, c);
-    matched = r.matched;
+    terms = r.terms;
     benchmark::DoNotOptimize(r.hessian);
   }
   state.counters["points"] = static_cast<double>(f.points.size());
-  state.counters["terms"] = static_cast<double>(matched);
+  state.counters["terms"] = static_cast<double>(terms);
   state.counters["voxels"] = static_cast<double>(grid.size());
   state.counters["ns_per_term"] =
-      benchmark::Counter(static_cast<double>(matched) * static_cast<double>(state.iterations()),
+      benchmark::Counter(static_cast<double>(terms) * static_cast<double>(state.iterations()),
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 // Arguments: derivatives, voxels per point, cache warm.

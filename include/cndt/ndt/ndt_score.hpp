@@ -45,7 +45,8 @@ struct ScoreResult {
   double score = 0.0;
   Vector6d gradient = Vector6d::Zero();
   Matrix6d hessian = Matrix6d::Zero();
-  std::size_t matched = 0;  ///< points that fell in an enabled voxel with a Gaussian
+  std::size_t matched = 0;  ///< points scored against at least one enabled Gaussian
+  std::size_t terms = 0;    ///< point-voxel pairs scored (up to `neighbours` per point)
 };
 
 /// Which reference voxels take part: nullptr = all with a Gaussian; otherwise mask[i] != 0

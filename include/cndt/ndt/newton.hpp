@@ -22,7 +22,7 @@ struct NewtonResult {
   int iterations = 0;
   bool converged = false;
   double score = 0.0;
-  std::size_t matched = 0;
+  std::size_t matched = 0;              ///< points matched at the final pose (ScoreResult::matched)
   Matrix6d hessian = Matrix6d::Zero();  ///< at the final pose
 };
 

@@ -164,8 +164,8 @@ TEST_P(Derivatives, AnalyticGradientAndHessianEqualFiniteDifferences) {
                                      GetParam() % 2 == 0 ? Neighbours::kSeven : Neighbours::kOne);
     const ScoreResult rb = ndt_score(s.grid, pts, b, true, nullptr,
                                      GetParam() % 2 == 0 ? Neighbours::kSeven : Neighbours::kOne);
-    ASSERT_EQ(ra.matched, r.matched);
-    ASSERT_EQ(rb.matched, r.matched);
+    ASSERT_EQ(ra.terms, r.terms);  // the same point-voxel pairs on both sides
+    ASSERT_EQ(rb.terms, r.terms);
     g_fd[k] = (ra.score - rb.score) / (2 * h);
     h_fd.col(k) = (ra.gradient - rb.gradient) / (2 * h);
   }
@@ -178,6 +178,25 @@ TEST_P(Derivatives, AnalyticGradientAndHessianEqualFiniteDifferences) {
 }
 
 INSTANTIATE_TEST_SUITE_P(RandomPoses, Derivatives, ::testing::Range(1u, 11u));
+
+// A point counts once as matched however many voxels it is scored against; each pair counts as
+// a term. Three voxels in a row, each with a Gaussian; the points sit in the middle one.
+TEST(NdtScore, CountsMatchedPointsAndTermsApart) {
+  VoxelGrid g({1.0, 100, 5, 0.001});
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.05, 0.95);
+  for (int v = 0; v < 3; ++v) {
+    for (int i = 0; i < 50; ++i) g.add(Eigen::Vector3d(v + u(rng), u(rng), u(rng)));
+  }
+  g.finalize();
+  const std::vector<Eigen::Vector3d> pts = {{1.5, 0.5, 0.5}, {1.4, 0.6, 0.5}, {9.5, 9.5, 9.5}};
+  const ScoreResult seven = ndt_score(g, pts, Pose6::Zero(), true, nullptr, Neighbours::kSeven);
+  EXPECT_EQ(seven.matched, 2u);  // the third point is far from every voxel
+  EXPECT_EQ(seven.terms, 6u);    // each of the two: its own voxel and the two beside it
+  const ScoreResult one = ndt_score(g, pts, Pose6::Zero(), false, nullptr, Neighbours::kOne);
+  EXPECT_EQ(one.matched, 2u);
+  EXPECT_EQ(one.terms, 2u);
+}
 
 // Scoring with a lookup cache gives what scoring without one gives, across poses, across a
 // change of the grid and across grids.
@@ -195,6 +214,7 @@ TEST(LookupCache, GivesTheSameScoresAsFreshLookups) {
       const ScoreResult plain = ndt_score(g, s.test, x, true, nullptr, nb);
       const ScoreResult cached = ndt_score(g, s.test, x, true, nullptr, nb, &cache);
       EXPECT_EQ(plain.matched, cached.matched);
+      EXPECT_EQ(plain.terms, cached.terms);
       EXPECT_DOUBLE_EQ(plain.score, cached.score);
       EXPECT_LT((plain.hessian - cached.hessian).norm(), 1e-12 * (1 + plain.hessian.norm()));
     }
