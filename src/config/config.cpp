@@ -153,6 +153,11 @@ const std::vector<Field>& fields() {
        "A scan with fewer points after downsampling is not matched (the pose is predicted and "
        "published as lost).",
        "points", 10, 1'000'000},
+      {"odometry", "max_acceleration_mps2", CNDT_REF(odometry.max_acceleration_mps2),
+       "Largest acceleration of the vehicle. A match farther from the constant-velocity "
+       "prediction than this allows over one time step (0.1 m at 10 m/s^2 and 10 Hz) is taken "
+       "for a wrong minimum and matched again from the prediction (0 = never).",
+       "m/s^2", 0, 1000},
 
       {"mapper", "enabled", CNDT_REF(mapper.enabled),
        "Run the mapper thread: keyframes, eq-7 refinement, a map and the correction T_map_odom "

@@ -29,7 +29,8 @@ output::PoseMessage make_pose_message(const slam::OdometryResult& r, const Eigen
     m.status = output::PoseStatus::kLost;
   } else if ((r.flags & slam::kOdomFirstScan) != 0) {
     m.status = output::PoseStatus::kValid;  // the origin, by definition
-  } else if (m.cm < options.degraded_below_cm || (r.flags & slam::kOdomNotConverged) != 0) {
+  } else if (m.cm < options.degraded_below_cm ||
+             (r.flags & (slam::kOdomNotConverged | slam::kOdomRematched)) != 0) {
     m.status = output::PoseStatus::kDegraded;
   } else {
     m.status = output::PoseStatus::kValid;

@@ -50,7 +50,7 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   for (auto* v : {&raw_, &map_src_, &scan_src_, &newest_src_}) {
     core::reserve_resident(*v, o.max_scan_points, timed);
   }
-  for (auto* v : {&test_, &cv_points_, &scratch_}) {
+  for (auto* v : {&test_, &cv_points_, &stamp_points_, &scratch_}) {
     core::reserve_resident(*v, o.max_scan_points, zero);
   }
   const std::size_t slots =
@@ -137,20 +137,23 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   }
   // Sensor pose at a point's firing time relative to the scan stamp: the fraction a = t / period
   // of the motion over one scan period, its rotation by Rodrigues' formula about the fixed axis.
+  // Then into the frame at mid-revolution, half the motion on.
   const Eigen::AngleAxisd aa(motion.linear());
   const Eigen::Vector3d k = aa.axis();
   const double angle = aa.angle();
   const Eigen::Vector3d t = motion.translation();
   const double inv_period = 1.0 / period_s;
+  const Eigen::Isometry3d to_mid = scale_motion(motion, 0.5).inverse();
   for (const TimedPoint& p : in) {
     const double a = p.t * inv_period;
     const double s = std::sin(a * angle), c1 = 1.0 - std::cos(a * angle);
     const Eigen::Vector3d kxv = k.cross(p.p);
-    out.push_back(p.p + s * kxv + c1 * k.cross(kxv) + a * t);
+    out.push_back(to_mid * (p.p + s * kxv + c1 * k.cross(kxv) + a * t));
   }
 }
 
 void ConsensusOdometry::deskew_all(const Eigen::Isometry3d& motion, double period_s) {
+  deskewed_with_ = motion;
   deskew(scan_src_, motion, period_s, test_);
   deskew(map_src_, motion, period_s, cv_points_);
 }
@@ -294,6 +297,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     newest_unskewed_ = options_.deskew;
     newest_src_ = map_src_;
     prev_pose_ = res.pose;
+    stamp_points_ = cv_points_;  // not deskewed: the stamp and mid-revolution frames coincide
     prev_stamp_ = scan.stamp;
     have_prev_ = true;
     return res;
@@ -320,6 +324,9 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
         newest_unskewed_ = false;
         first_velocity = estimated;
         deskew(newest_src_, estimated, period, scratch_);
+        // The first scan's pose at its stamp is the identity; at mid-revolution, half a period on.
+        last_keyframe_pose_ = scale_motion(estimated, 0.5);
+        prev_pose_ = last_keyframe_pose_;
         replace_newest(scratch_, last_keyframe_pose_);
         used_motion = scale_motion(estimated, dt / period);
         deskew_all(estimated, period);
@@ -334,6 +341,17 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
       used_motion = estimated;
       deskew_all(scale_motion(estimated, to_period), period);
       x0 = core::to_pose6(res.pose);
+    }
+    // A match that implies an impossible acceleration: matched again from the prediction
+    // (deskewed with it), without the pyramid. Constant acceleration a moves the pose a dt^2 / 2
+    // off the constant-velocity prediction; the other half of the allowance is for the error
+    // of the velocity itself.
+    const double max_jump = options_.max_acceleration * dt * dt;
+    if (options_.max_acceleration > 0.0 && have_prev2_ && prediction_trusted_ &&
+        (res.pose.translation() - predicted.translation()).norm() > max_jump) {
+      res.flags |= kOdomRematched;
+      deskew_all(scale_motion(motion, to_period), period);
+      converged = match(core::to_pose6(predicted), res);
     }
     if (!converged) res.flags |= kOdomNotConverged;
     have_motion_prior_ = converged;
@@ -359,11 +377,22 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     prev_motion_ = *first_velocity;
     prev_period_s_ = period;
   }
+  // The next prediction is trusted when this scan's match was clean: a scan rematched, flagged
+  // degenerate or not matched may carry a wrong motion, and gating on it would keep it.
+  prediction_trusted_ = (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomDegenerate |
+                                      kOdomRematched)) == 0;
   have_prev2_ = true;
   newest_unskewed_ = false;
   update_reference(res.pose);
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;
+  // Reported at the scan stamp, half the deskew's motion before mid-revolution; the points for
+  // the mapper likewise.
+  const Eigen::Isometry3d half =
+      options_.deskew ? scale_motion(deskewed_with_, 0.5) : Eigen::Isometry3d::Identity();
+  res.pose = res.pose * half.inverse();
+  stamp_points_.clear();
+  for (const Eigen::Vector3d& p : cv_points_) stamp_points_.push_back(half * p);
   return res;
 }
 

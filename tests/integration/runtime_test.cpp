@@ -8,6 +8,7 @@
 #include "cndt/can/can_bus.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
 #include "cndt/runtime/pipeline.hpp"
+#include "cndt/runtime/publisher.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/vlp16/driver.hpp"
 #include "temp_dir.hpp"
@@ -52,6 +53,25 @@ std::vector<ScanResult> run_pipeline(const PipelineOptions& o, PosePublisher& pu
   while (pipeline.pop(r)) out.push_back(r);
   if (stats != nullptr) *stats = pipeline.stats();
   return out;
+}
+
+// The status sent with a pose follows the odometry's flags and Cm.
+TEST(PosePublisher, StatusFollowsTheOdometryFlagsAndCm) {
+  const PublisherOptions options;
+  const auto status = [&](std::uint32_t flags, double cm) {
+    slam::OdometryResult r;
+    r.flags = flags;
+    r.cm = cm;
+    return make_pose_message(r, Eigen::Isometry3d::Identity(), false, 0, options).status;
+  };
+  using output::PoseStatus;
+  EXPECT_EQ(status(0, 0.5), PoseStatus::kValid);
+  EXPECT_EQ(status(0, 0.1), PoseStatus::kDegraded);
+  EXPECT_EQ(status(slam::kOdomNotConverged, 0.5), PoseStatus::kDegraded);
+  EXPECT_EQ(status(slam::kOdomRematched, 0.5), PoseStatus::kDegraded);
+  EXPECT_EQ(status(slam::kOdomDegenerate, 0.0), PoseStatus::kLost);
+  EXPECT_EQ(status(slam::kOdomTooFewPoints, 0.0), PoseStatus::kLost);
+  EXPECT_EQ(status(slam::kOdomFirstScan, 0.0), PoseStatus::kValid);
 }
 
 TEST(AllocCounter, CountsOnTheCallingThreadOnly) {

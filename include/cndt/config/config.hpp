@@ -45,6 +45,7 @@ struct Config {
     std::int64_t local_map_points = 1'500'000;
     std::int64_t max_map_voxels = 400'000;
     std::int64_t min_points = 200;
+    double max_acceleration_mps2 = 10.0;
   } odometry;
   struct Mapper {
     bool enabled = false;

@@ -44,7 +44,11 @@ struct OdometryOptions {
   double map_cell = 0.1;  ///< downsampling of scans added to the reference and used for Cv, m
   double eta = 0.7;       ///< Cv threshold (paper: 0.7)
   double min_range = 1.0, max_range = 100.0;  ///< m; nearer points are the vehicle itself
-  bool deskew = true;                         ///< undistort with the constant-velocity prediction
+  /// Undistort every scan with the estimated motion, to the sensor pose at mid-revolution (the
+  /// match estimates that pose; the reported pose is moved back to the scan stamp). At mid-scan
+  /// an error in the deskew's motion distorts the scan symmetrically and does not move the
+  /// matched pose; deskewed to the stamp, half of a height-rate error went into the height.
+  bool deskew = true;
   /// A stream's first scan is usually a partial revolution (the receiver started mid-turn). As
   /// the first reference it covers only a sector and the start-up matches drift off by
   /// decimetres; skipped, the trajectory starts at the first whole revolution.
@@ -82,6 +86,12 @@ struct OdometryOptions {
   /// corridor's median ratio is about 0.0014; street, campus and loop drives have medians of
   /// 0.05-0.15.
   double degenerate_conditioning = 0.003;
+  /// Largest acceleration the platform can have, m/s^2 (0 = no check). A match that lands
+  /// farther from the constant-velocity prediction than a dt^2 (0.1 m at 10 m/s^2 and 10 Hz)
+  /// has jumped to a wrong minimum (rings that move with the sensor hold a young reference near
+  /// zero motion): the scan is matched again from the prediction, without the pyramid, and
+  /// flagged kOdomRematched.
+  double max_acceleration = 10.0;
 };
 
 /// Most test points one reference voxel can hold after downsampling to map_cell (about 600
@@ -95,6 +105,7 @@ enum OdometryFlags : std::uint32_t {
   kOdomDegenerate = 1u << 3,      ///< the geometry does not fix the pose (Cm reported as 0)
   kOdomScanIncomplete = 1u << 4,  ///< the scan was partial, lossy or cut
   kOdomSkipped = 1u << 5,  ///< a partial first revolution, not used: no pose (the next one starts)
+  kOdomRematched = 1u << 6,  ///< matched again from the prediction (see max_acceleration)
 };
 
 struct OdometryResult {
@@ -121,7 +132,7 @@ class ConsensusOdometry {
   /// The last processed scan's points (downsampled to map_cell, deskewed with the final motion
   /// estimate), in the sensor frame at its stamp: what the mapper takes. Stale after a skipped
   /// scan.
-  [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const { return cv_points_; }
+  [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const { return stamp_points_; }
   /// Scans the reference holds now (local map: at most local_map_scans, and fewer when their
   /// points fill local_map_points).
   [[nodiscard]] std::size_t reference_scans() const { return history_size_; }
@@ -132,10 +143,10 @@ class ConsensusOdometry {
 
  private:
   // Deskews `in` (sensor frame, timed) with `motion` over `period_s` into `out`: every point
-  // moved to where the sensor was at the scan stamp.
+  // moved to where the sensor was at mid-revolution, half of `motion` after the scan stamp.
   void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion, double period_s,
               std::vector<Eigen::Vector3d>& out) const;
-  void deskew_all(const Eigen::Isometry3d& motion, double period_s);
+  void deskew_all(const Eigen::Isometry3d& motion, double period_s);  // test_ and cv_points_
   // Adds the current scan (cv_points_, placed at `pose`) to the reference when it is due.
   void update_reference(const Eigen::Isometry3d& pose);
   // Replaces the newest reference scan by `points` placed at `pose`.
@@ -156,11 +167,13 @@ class ConsensusOdometry {
   ndt::ChiSquareTable chi2_;
   ndt::LookupCache lookup_cache_;
   Downsampler map_sampler_, scan_sampler_;
-  std::vector<TimedPoint> raw_;             // in range, sensor frame
-  std::vector<TimedPoint> map_src_;         // raw_ at map_cell
-  std::vector<TimedPoint> scan_src_;        // map_src_ at scan_cell
-  std::vector<Eigen::Vector3d> test_;       // scan_src_ deskewed: matched
-  std::vector<Eigen::Vector3d> cv_points_;  // map_src_ deskewed: Cv, and added to the reference
+  std::vector<TimedPoint> raw_;                // in range, sensor frame
+  std::vector<TimedPoint> map_src_;            // raw_ at map_cell
+  std::vector<TimedPoint> scan_src_;           // map_src_ at scan_cell
+  std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
+  std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
+  std::vector<Eigen::Vector3d> stamp_points_;  // cv_points_ in the sensor frame at the stamp
+  Eigen::Isometry3d deskewed_with_ = Eigen::Isometry3d::Identity();  // last deskew_all motion
   // Reference scans in the odometry frame: a ring of up to local_map_scans entries, oldest
   // first, whose points lie one after the other in a circular buffer of local_map_points.
   std::span<const Eigen::Vector3d> history_points(const core::RingRegion& h) const {
@@ -181,8 +194,10 @@ class ConsensusOdometry {
   std::vector<double> cv_;
   ndt::VoxelResiduals residuals_;
   bool have_prev_ = false, have_prev2_ = false;
+  // The poses and motions the odometry chains are those at mid-revolution (see deskew).
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
+  bool prediction_trusted_ = false;  // the last scan was matched cleanly (see max_acceleration)
   std::chrono::nanoseconds prev_stamp_{0};
   double prev_period_s_ = 0.1;
 };
