@@ -156,8 +156,13 @@ const std::vector<Field>& fields() {
       {"odometry", "max_acceleration_mps2", CNDT_REF(odometry.max_acceleration_mps2),
        "Largest acceleration of the vehicle. A match farther from the constant-velocity "
        "prediction than this allows over one time step (0.1 m at 10 m/s^2 and 10 Hz) is taken "
-       "for a wrong minimum and matched again from the prediction (0 = never).",
+       "for a wrong minimum and matched again from the prediction (0 = never; 10 was measured with "
+       "deskew_to_mid_scan).",
        "m/s^2", 0, 1000},
+      {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
+       "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
+       "stays at the stamp). Halves RTE and RPE on 30 s simulated drives but drifts more on a "
+       "120 s street (docs/odometry.md)."},
 
       {"mapper", "enabled", CNDT_REF(mapper.enabled),
        "Run the mapper thread: keyframes, eq-7 refinement, a map and the correction T_map_odom "

@@ -90,6 +90,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.max_map_voxels = static_cast<std::size_t>(od.max_map_voxels);
   o.min_points = static_cast<std::size_t>(od.min_points);
   o.max_acceleration = od.max_acceleration_mps2;
+  o.deskew_to_mid_scan = od.deskew_to_mid_scan;
   o.max_scan_points = s.max_points;
 
   const auto& mp = c.mapper;

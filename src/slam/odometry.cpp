@@ -143,12 +143,14 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   const double angle = aa.angle();
   const Eigen::Vector3d t = motion.translation();
   const double inv_period = 1.0 / period_s;
+  const bool mid = options_.deskew_to_mid_scan;
   const Eigen::Isometry3d to_mid = scale_motion(motion, 0.5).inverse();
   for (const TimedPoint& p : in) {
     const double a = p.t * inv_period;
     const double s = std::sin(a * angle), c1 = 1.0 - std::cos(a * angle);
     const Eigen::Vector3d kxv = k.cross(p.p);
-    out.push_back(to_mid * (p.p + s * kxv + c1 * k.cross(kxv) + a * t));
+    const Eigen::Vector3d at_stamp = p.p + s * kxv + c1 * k.cross(kxv) + a * t;
+    out.push_back(mid ? Eigen::Vector3d(to_mid * at_stamp) : at_stamp);
   }
 }
 
@@ -325,8 +327,10 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
         first_velocity = estimated;
         deskew(newest_src_, estimated, period, scratch_);
         // The first scan's pose at its stamp is the identity; at mid-revolution, half a period on.
-        last_keyframe_pose_ = scale_motion(estimated, 0.5);
-        prev_pose_ = last_keyframe_pose_;
+        if (options_.deskew_to_mid_scan) {
+          last_keyframe_pose_ = scale_motion(estimated, 0.5);
+          prev_pose_ = last_keyframe_pose_;
+        }
         replace_newest(scratch_, last_keyframe_pose_);
         used_motion = scale_motion(estimated, dt / period);
         deskew_all(estimated, period);
@@ -379,8 +383,8 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   }
   // The next prediction is trusted when this scan's match was clean: a scan rematched, flagged
   // degenerate or not matched may carry a wrong motion, and gating on it would keep it.
-  prediction_trusted_ = (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomDegenerate |
-                                      kOdomRematched)) == 0;
+  prediction_trusted_ =
+      (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomDegenerate | kOdomRematched)) == 0;
   have_prev2_ = true;
   newest_unskewed_ = false;
   update_reference(res.pose);
@@ -388,8 +392,9 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   prev_stamp_ = scan.stamp;
   // Reported at the scan stamp, half the deskew's motion before mid-revolution; the points for
   // the mapper likewise.
-  const Eigen::Isometry3d half =
-      options_.deskew ? scale_motion(deskewed_with_, 0.5) : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d half = options_.deskew && options_.deskew_to_mid_scan
+                                     ? scale_motion(deskewed_with_, 0.5)
+                                     : Eigen::Isometry3d::Identity();
   res.pose = res.pose * half.inverse();
   stamp_points_.clear();
   for (const Eigen::Vector3d& p : cv_points_) stamp_points_.push_back(half * p);

@@ -45,7 +45,8 @@ struct Config {
     std::int64_t local_map_points = 1'500'000;
     std::int64_t max_map_voxels = 400'000;
     std::int64_t min_points = 200;
-    double max_acceleration_mps2 = 10.0;
+    double max_acceleration_mps2 = 0.0;
+    bool deskew_to_mid_scan = false;
   } odometry;
   struct Mapper {
     bool enabled = false;
