@@ -50,9 +50,10 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   for (auto* v : {&raw_, &map_src_, &scan_src_, &newest_src_}) {
     core::reserve_resident(*v, o.max_scan_points, timed);
   }
-  for (auto* v : {&test_, &cv_points_, &stamp_points_, &scratch_}) {
+  for (auto* v : {&test_, &cv_points_, &scratch_}) {
     core::reserve_resident(*v, o.max_scan_points, zero);
   }
+  if (o.deskew_to_mid_scan) core::reserve_resident(stamp_points_, o.max_scan_points, zero);
   const std::size_t slots =
       o.reference == Reference::kPreviousScan ? 1 : std::max<std::size_t>(1, o.local_map_scans);
   history_.resize(slots);
@@ -137,7 +138,7 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   }
   // Sensor pose at a point's firing time relative to the scan stamp: the fraction a = t / period
   // of the motion over one scan period, its rotation by Rodrigues' formula about the fixed axis.
-  // Then into the frame at mid-revolution, half the motion on.
+  // With deskew_to_mid_scan, then into the frame at mid-revolution, half the motion on.
   const Eigen::AngleAxisd aa(motion.linear());
   const Eigen::Vector3d k = aa.axis();
   const double angle = aa.angle();
@@ -299,7 +300,8 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     newest_unskewed_ = options_.deskew;
     newest_src_ = map_src_;
     prev_pose_ = res.pose;
-    stamp_points_ = cv_points_;  // not deskewed: the stamp and mid-revolution frames coincide
+    // Not deskewed: the stamp and mid-revolution frames coincide.
+    if (options_.deskew_to_mid_scan) stamp_points_ = cv_points_;
     prev_stamp_ = scan.stamp;
     have_prev_ = true;
     return res;
@@ -390,14 +392,14 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   update_reference(res.pose);
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;
-  // Reported at the scan stamp, half the deskew's motion before mid-revolution; the points for
-  // the mapper likewise.
-  const Eigen::Isometry3d half = options_.deskew && options_.deskew_to_mid_scan
-                                     ? scale_motion(deskewed_with_, 0.5)
-                                     : Eigen::Isometry3d::Identity();
-  res.pose = res.pose * half.inverse();
-  stamp_points_.clear();
-  for (const Eigen::Vector3d& p : cv_points_) stamp_points_.push_back(half * p);
+  if (options_.deskew && options_.deskew_to_mid_scan) {
+    // Reported at the scan stamp, half the deskew's motion before mid-revolution; the points
+    // for the mapper likewise.
+    const Eigen::Isometry3d half = scale_motion(deskewed_with_, 0.5);
+    res.pose = res.pose * half.inverse();
+    stamp_points_.clear();
+    for (const Eigen::Vector3d& p : cv_points_) stamp_points_.push_back(half * p);
+  }
   return res;
 }
 

@@ -138,7 +138,9 @@ class ConsensusOdometry {
   /// The last processed scan's points (downsampled to map_cell, deskewed with the final motion
   /// estimate), in the sensor frame at its stamp: what the mapper takes. Stale after a skipped
   /// scan.
-  [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const { return stamp_points_; }
+  [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const {
+    return options_.deskew_to_mid_scan ? stamp_points_ : cv_points_;
+  }
   /// Scans the reference holds now (local map: at most local_map_scans, and fewer when their
   /// points fill local_map_points).
   [[nodiscard]] std::size_t reference_scans() const { return history_size_; }
@@ -149,7 +151,8 @@ class ConsensusOdometry {
 
  private:
   // Deskews `in` (sensor frame, timed) with `motion` over `period_s` into `out`: every point
-  // moved to where the sensor was at mid-revolution, half of `motion` after the scan stamp.
+  // moved to where the sensor was at the scan stamp, or with deskew_to_mid_scan at
+  // mid-revolution, half of `motion` after the stamp.
   void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion, double period_s,
               std::vector<Eigen::Vector3d>& out) const;
   void deskew_all(const Eigen::Isometry3d& motion, double period_s);  // test_ and cv_points_
@@ -178,7 +181,7 @@ class ConsensusOdometry {
   std::vector<TimedPoint> scan_src_;           // map_src_ at scan_cell
   std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
   std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
-  std::vector<Eigen::Vector3d> stamp_points_;  // cv_points_ in the sensor frame at the stamp
+  std::vector<Eigen::Vector3d> stamp_points_;  // deskew_to_mid_scan: cv_points_ at the stamp
   Eigen::Isometry3d deskewed_with_ = Eigen::Isometry3d::Identity();  // last deskew_all motion
   // Reference scans in the odometry frame: a ring of up to local_map_scans entries, oldest
   // first, whose points lie one after the other in a circular buffer of local_map_points.
@@ -200,7 +203,7 @@ class ConsensusOdometry {
   std::vector<double> cv_;
   ndt::VoxelResiduals residuals_;
   bool have_prev_ = false, have_prev2_ = false;
-  // The poses and motions the odometry chains are those at mid-revolution (see deskew).
+  // With deskew_to_mid_scan, the poses and motions chained here are those at mid-revolution.
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
   bool prediction_trusted_ = false;  // the last scan was matched cleanly (see max_acceleration)
