@@ -145,7 +145,8 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   const Eigen::Vector3d t = motion.translation();
   const double inv_period = 1.0 / period_s;
   const bool mid = options_.deskew_to_mid_scan;
-  const Eigen::Isometry3d to_mid = scale_motion(motion, 0.5).inverse();
+  const Eigen::Isometry3d to_mid =
+      mid ? scale_motion(motion, 0.5).inverse() : Eigen::Isometry3d::Identity();
   for (const TimedPoint& p : in) {
     const double a = p.t * inv_period;
     const double s = std::sin(a * angle), c1 = 1.0 - std::cos(a * angle);
@@ -291,7 +292,8 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   scan_sampler_.run(map_src_, scan_src_);
   // The deskew motion spans one scan period; `motion` spans dt.
   const double to_period = period / std::max(dt, 1e-3);
-  deskew_all(scale_motion(motion, to_period), period);
+  const Eigen::Isometry3d predicted_deskew = scale_motion(motion, to_period);  // over one period
+  deskew_all(predicted_deskew, period);
   res.points = test_.size();
   if (!have_prev_) {
     res.flags |= kOdomFirstScan;
@@ -353,10 +355,10 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     // off the constant-velocity prediction; the other half of the allowance is for the error
     // of the velocity itself.
     const double max_jump = options_.max_acceleration * dt * dt;
-    if (options_.max_acceleration > 0.0 && have_prev2_ && prediction_trusted_ &&
+    if (options_.max_acceleration > 0.0 && prediction_trusted_ &&
         (res.pose.translation() - predicted.translation()).norm() > max_jump) {
       res.flags |= kOdomRematched;
-      deskew_all(scale_motion(motion, to_period), period);
+      deskew_all(predicted_deskew, period);
       converged = match(core::to_pose6(predicted), res);
     }
     if (!converged) res.flags |= kOdomNotConverged;

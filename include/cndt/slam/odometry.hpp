@@ -206,7 +206,9 @@ class ConsensusOdometry {
   // With deskew_to_mid_scan, the poses and motions chained here are those at mid-revolution.
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
-  bool prediction_trusted_ = false;  // the last scan was matched cleanly (see max_acceleration)
+  // The last scan was matched cleanly after an earlier one (so a velocity is known): see
+  // max_acceleration.
+  bool prediction_trusted_ = false;
   std::chrono::nanoseconds prev_stamp_{0};
   double prev_period_s_ = 0.1;
 };
