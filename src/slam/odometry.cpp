@@ -319,7 +319,8 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
     Eigen::Isometry3d used_motion = motion;  // what the scan was deskewed with (over dt)
     bool converged = false;
-    for (int pass = 0; pass < 1 + options_.deskew_refinements; ++pass) {
+    int passes = 1 + options_.deskew_refinements;
+    for (int pass = 0; pass < passes; ++pass) {
       converged = match(x0, res);
       const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
       if (newest_unskewed_ && converged) {
@@ -339,13 +340,14 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
         used_motion = scale_motion(estimated, dt / period);
         deskew_all(estimated, period);
         x0 = core::to_pose6(prev_pose_ * used_motion);
+        passes = std::max(passes, pass + 2);  // matched again even with no refinements
         continue;
       }
       // Deskew again with the motion just estimated if it differs from the one used.
       const Eigen::Isometry3d diff = used_motion.inverse() * estimated;
       const bool consistent =
           diff.translation().norm() < 0.02 && Eigen::AngleAxisd(diff.linear()).angle() < 0.002;
-      if (!options_.deskew || consistent || pass == options_.deskew_refinements) break;
+      if (!options_.deskew || consistent || pass + 1 == passes) break;
       used_motion = estimated;
       deskew_all(scale_motion(estimated, to_period), period);
       x0 = core::to_pose6(res.pose);
