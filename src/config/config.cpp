@@ -208,7 +208,9 @@ const std::vector<Field>& fields() {
        "scan is dropped and counted; replay waits instead.",
        "scans", 2, 64},
       {"runtime", "keyframe_ring", CNDT_REF(runtime.keyframe_ring),
-       "Scans buffered between the odometry and the mapper.", "scans", 2, 1024},
+       "Scans buffered between the odometry and the mapper (in a replay also how many scans the "
+       "odometry may run ahead of the mapper).",
+       "scans", 2, 1024},
       {"runtime", "keyframe_ring_points", CNDT_REF(runtime.keyframe_ring_points),
        "Points the scans buffered for the mapper hold together (one buffer, allocated once, at "
        "least max_points). Live input: a scan that does not fit is not mapped (counted); replay "

@@ -71,6 +71,16 @@ struct Pipeline::Impl {
   std::atomic<std::uint64_t> keys_released{0};
   Ring<Ack> acks;
   Ring<ScanResult> results;
+  // Replay with the mapper, odometry thread: results whose scans went to the mapper wait here,
+  // in order, for the mapper's answer to each (the correction after that scan), while the
+  // odometry goes on with the next scans. At most keyframe_ring entries, so that the answers
+  // waiting to be read never exceed the room of `acks`.
+  struct Unpublished {
+    ScanResult result;
+    bool awaits_ack = false;
+  };
+  std::vector<Unpublished> unpublished;
+  std::size_t unpublished_head = 0, unpublished_size = 0;
   std::function<void(const slam::Mapper&, double)> keyframe_callback;
   void (*scan_callback)(void*) = nullptr;
   void* scan_context = nullptr;
@@ -113,6 +123,7 @@ struct Pipeline::Impl {
       free_slots.push(static_cast<std::uint32_t>(i));
     }
     if (o.mapper) {
+      if (!o.live) unpublished.resize(std::max<std::size_t>(1, o.keyframe_ring));
       keys.resize(o.keyframe_ring + 1);
       key_regions.resize(keys.size());
       for (std::size_t i = 0; i < keys.size(); ++i) key_free.push(static_cast<std::uint32_t>(i));
@@ -174,29 +185,34 @@ struct Pipeline::Impl {
       const auto t1 = Clock::now();
       res.odometry_ms = ms_between(t0, t1);
       res.sequence = slot.scan.sequence;
+      res.completed = slot.completed;
       const slam::OdometryResult& r = res.odometry;
       const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
       res.published = r.pose;
-      if (mapper != nullptr) {
-        if (!skipped && (r.flags & slam::kOdomTooFewPoints) == 0) hand_to_mapper(res, correction);
-        Ack ack;
-        while (acks.pop(ack)) correction = ack.correction;  // live: the newest finished
-        res.published = correction * r.pose;
-        res.map_corrected = true;
-      }
-      if (!skipped) {
-        res.published_pose = true;
-        publisher.publish(make_pose_message(r, res.published, res.map_corrected,
-                                            static_cast<std::uint32_t>(res.sequence),
-                                            publisher.options()));
-      }
-      res.latency_ms = ms_between(slot.completed, Clock::now());
       free_slots.push(idx);
-      if (options.live) {
-        if (!results.push(res)) results_dropped.fetch_add(1, std::memory_order_relaxed);
-      } else if (!wait_for([&] { return results.push(res); })) {
-        break;
+      bool publishing = true;
+      if (mapper != nullptr) {
+        const bool handed =
+            !skipped && (r.flags & slam::kOdomTooFewPoints) == 0 && hand_to_mapper(res);
+        res.map_corrected = true;
+        if (options.live) {
+          Ack ack;
+          while (acks.pop(ack)) correction = ack.correction;  // the newest finished
+          publishing = publish(res, correction);
+        } else {
+          // Published once the mapper has answered for this scan, with the correction it had
+          // then, as a single thread would; the odometry meanwhile goes on.
+          if (unpublished_size == unpublished.size()) {
+            publishing = publish_unpublished(correction, true, 1);
+          }
+          unpublished[(unpublished_head + unpublished_size) % unpublished.size()] = {res, handed};
+          ++unpublished_size;
+          publishing = publishing && publish_unpublished(correction, false, unpublished_size);
+        }
+      } else {
+        publishing = publish(res, correction);
       }
+      if (!publishing) break;
       scans_done.fetch_add(1, std::memory_order_relaxed);
       ++processed;
       if (!counting.load(std::memory_order_relaxed) && processed >= options.warmup_scans) {
@@ -211,9 +227,65 @@ struct Pipeline::Impl {
       }
       if (scan_callback != nullptr) scan_callback(scan_context);
     }
+    // Replay: the results still waiting for the mapper's answers (a shutdown takes those
+    // already given and publishes the rest with the newest correction).
+    publish_unpublished(correction, !stopping.load(), unpublished_size);
     alloc_counting(false);
     publisher.flush();
     odometry_done.store(true);
+  }
+
+  // Sends the pose of `res` (unless skipped) corrected by `correction` and hands the result on;
+  // false when stopping in replay.
+  bool publish(ScanResult& res, const Eigen::Isometry3d& correction) {
+    const slam::OdometryResult& r = res.odometry;
+    if (res.map_corrected) res.published = correction * r.pose;
+    if ((r.flags & slam::kOdomSkipped) == 0) {
+      res.published_pose = true;
+      publisher.publish(make_pose_message(r, res.published, res.map_corrected,
+                                          static_cast<std::uint32_t>(res.sequence),
+                                          publisher.options()));
+    }
+    res.latency_ms = ms_between(res.completed, Clock::now());
+    if (options.live) {
+      if (!results.push(res)) results_dropped.fetch_add(1, std::memory_order_relaxed);
+      return true;
+    }
+    return wait_for([&] { return results.push(res); });
+  }
+
+  // Replay with the mapper: publishes the oldest unpublished results whose answers have come
+  // (each answer updates `correction`), at least `least` of them when `wait` (waiting for the
+  // mapper), else as many as are ready. Stopping: the rest go out with the newest correction.
+  // False when stopping.
+  bool publish_unpublished(Eigen::Isometry3d& correction, bool wait, std::size_t least) {
+    std::size_t published = 0;
+    while (unpublished_size > 0) {
+      Unpublished& u = unpublished[unpublished_head];
+      if (u.awaits_ack) {
+        Ack ack;
+        // The mapper answers the scans in the order they were handed, one answer each.
+        while (!acks.pop(ack)) {
+          if (stopping.load(std::memory_order_relaxed)) {
+            // Shutting down: the mapper may not answer; what is left goes out as it is.
+            while (unpublished_size > 0) {
+              publish(unpublished[unpublished_head].result, correction);
+              unpublished_head = (unpublished_head + 1) % unpublished.size();
+              --unpublished_size;
+            }
+            return false;
+          }
+          if (!wait || published >= least) return true;
+          std::this_thread::sleep_for(kPoll);
+        }
+        correction = ack.correction;
+      }
+      if (!publish(u.result, correction)) return false;
+      unpublished_head = (unpublished_head + 1) % unpublished.size();
+      --unpublished_size;
+      ++published;
+    }
+    return true;
   }
 
   // Where `n` points can go in the key pool without touching the points of a scan the mapper
@@ -229,9 +301,9 @@ struct Pipeline::Impl {
     return true;
   }
 
-  // Copies the scan's points for the mapper; in replay waits until the mapper has taken them
-  // and applies the correction it had after that scan, as a single thread would.
-  void hand_to_mapper(const ScanResult& res, Eigen::Isometry3d& correction) {
+  // Copies the scan's points for the mapper (replay: waits for room in the key ring). False when
+  // the scan was not handed (live: no room; replay: stopping).
+  bool hand_to_mapper(const ScanResult& res) {
     const auto pts = odometry.scan_points();
     const std::size_t n = std::min(pts.size(), key_pool.size());
     core::RingRegion region;
@@ -244,7 +316,7 @@ struct Pipeline::Impl {
     };
     if (!ready() && (options.live || !wait_for(ready))) {
       mapper_dropped.fetch_add(1, std::memory_order_relaxed);
-      return;
+      return false;
     }
     const std::uint32_t k = *held_key;
     held_key.reset();
@@ -258,16 +330,7 @@ struct Pipeline::Impl {
     key_regions[keys_handed % key_regions.size()] = region;
     ++keys_handed;
     key_full.push(k);
-    if (!options.live) {
-      Ack ack;
-      wait_for([&] {
-        while (acks.pop(ack)) {
-          correction = ack.correction;
-          if (ack.sequence == res.sequence) return true;
-        }
-        return false;
-      });
-    }
+    return true;
   }
 
   void run_mapper() {

@@ -6,8 +6,9 @@
 //
 // Two modes. Live (the daemon on a sensor): the input never waits; when the scan ring is full
 // the oldest scan is dropped and counted, and the odometry applies whatever correction the mapper
-// has finished. Replay: back-pressure instead of drops, and the odometry waits for the mapper to
-// have taken each scan before publishing it, so that every run of a capture gives the same bytes.
+// has finished. Replay: back-pressure instead of drops, and each scan's pose is published with the
+// correction the mapper had right after taking that scan, so that every run of a capture gives
+// the same bytes; the odometry meanwhile goes on with the next scans (up to keyframe_ring ahead).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -53,6 +54,7 @@ struct ScanResult {
   std::uint64_t sequence = 0;   ///< the scan's sequence number
   double odometry_ms = 0.0;     ///< time in ConsensusOdometry::process
   double latency_ms = 0.0;      ///< from the scan's completion to its pose being published
+  std::chrono::steady_clock::time_point completed;  ///< when the scan was complete
 };
 
 struct PipelineStats {
