@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <functional>
 #include <thread>
 
 #include "cndt/can/can_bus.hpp"
@@ -34,10 +35,14 @@ std::vector<core::Scan> simulated_scans(sim::SceneKind kind, double seconds) {
   return scans;
 }
 
+// Runs `scans` through a pipeline (`setup` is called on it before it starts) and returns every
+// result.
 std::vector<ScanResult> run_pipeline(const PipelineOptions& o, PosePublisher& publisher,
                                      const std::vector<core::Scan>& scans, PipelineStats* stats,
-                                     std::size_t max_points = 150'000) {
+                                     std::size_t max_points = 150'000,
+                                     const std::function<void(Pipeline&)>& setup = {}) {
   Pipeline pipeline(o, max_points, publisher);
+  if (setup) setup(pipeline);
   pipeline.start();
   std::thread input([&] {
     for (const auto& s : scans) pipeline.push(s, std::chrono::steady_clock::now());
@@ -196,34 +201,21 @@ TEST(Runtime, ReplayOdometryRunsAheadOfABusyMapper) {
   o.keyframe_ring = 8;
   const Reference ref = single_threaded(o, scans);
   PosePublisher publisher{PublisherOptions{}};
-  Pipeline pipeline(o, 150'000, publisher);
   std::atomic<bool> held{false}, ran_ahead{false};
-  pipeline.on_keyframe([&](const slam::Mapper&, double) {
-    if (held.exchange(true)) return;  // the first keyframe only
-    const std::uint64_t at = pipeline.stats().scans_done;
-    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while (std::chrono::steady_clock::now() < until) {
-      if (pipeline.stats().scans_done >= at + 3) {
-        ran_ahead = true;
-        break;
+  const auto results = run_pipeline(o, publisher, scans, nullptr, 150'000, [&](Pipeline& p) {
+    p.on_keyframe([&](const slam::Mapper&, double) {
+      if (held.exchange(true)) return;  // the first keyframe only
+      const std::uint64_t at = p.stats().scans_done;
+      const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      while (std::chrono::steady_clock::now() < until) {
+        if (p.stats().scans_done >= at + 3) {
+          ran_ahead = true;
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
+    });
   });
-  pipeline.start();
-  std::thread input([&] {
-    for (const auto& s : scans) pipeline.push(s, std::chrono::steady_clock::now());
-    pipeline.close_input(true);
-  });
-  std::vector<ScanResult> results;
-  ScanResult r;
-  while (!pipeline.done()) {
-    while (pipeline.pop(r)) results.push_back(r);
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  input.join();
-  pipeline.join();
-  while (pipeline.pop(r)) results.push_back(r);
   EXPECT_TRUE(held);
   EXPECT_TRUE(ran_ahead) << "the odometry waited for the mapper";
   std::size_t k = 0;
