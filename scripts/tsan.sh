@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The threads under ThreadSanitizer: the live pipeline overloaded (drops on both sides of the
-# rings), a replay whose odometry runs ahead of a busy mapper, then cndtd on a short simulated capture with the mapper, CAN and UDP outputs and
-# health lines every half second. Any report fails the stage (TSan exits non-zero).
+# rings), a replay whose odometry runs ahead of a busy mapper, then cndtd on a short simulated
+# capture with the mapper, CAN and UDP outputs and health lines every half second. Any report
+# fails the stage (TSan exits non-zero).
 # Usage: scripts/tsan.sh BUILD_DIR
 set -euo pipefail
 build=$1
