@@ -77,6 +77,7 @@ struct Pipeline::Impl {
   // waiting to be read never exceed the room of `acks`.
   struct Unpublished {
     ScanResult result;
+    Clock::time_point completed;
     bool awaits_ack = false;
   };
   std::vector<Unpublished> unpublished;
@@ -185,7 +186,7 @@ struct Pipeline::Impl {
       const auto t1 = Clock::now();
       res.odometry_ms = ms_between(t0, t1);
       res.sequence = slot.scan.sequence;
-      res.completed = slot.completed;
+      const Clock::time_point completed = slot.completed;
       const slam::OdometryResult& r = res.odometry;
       const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
       res.published = r.pose;
@@ -198,19 +199,20 @@ struct Pipeline::Impl {
         if (options.live) {
           Ack ack;
           while (acks.pop(ack)) correction = ack.correction;  // the newest finished
-          publishing = publish(res, correction);
+          publishing = publish(res, completed, correction);
         } else {
           // Published once the mapper has answered for this scan, with the correction it had
           // then, as a single thread would; the odometry meanwhile goes on.
           if (unpublished_size == unpublished.size()) {
             publishing = publish_unpublished(correction, true, 1);
           }
-          unpublished[(unpublished_head + unpublished_size) % unpublished.size()] = {res, handed};
+          unpublished[(unpublished_head + unpublished_size) % unpublished.size()] = {res, completed,
+                                                                                     handed};
           ++unpublished_size;
           publishing = publishing && publish_unpublished(correction, false, unpublished_size);
         }
       } else {
-        publishing = publish(res, correction);
+        publishing = publish(res, completed, correction);
       }
       if (!publishing) break;
       scans_done.fetch_add(1, std::memory_order_relaxed);
@@ -235,9 +237,9 @@ struct Pipeline::Impl {
     odometry_done.store(true);
   }
 
-  // Sends the pose of `res` (unless skipped) corrected by `correction` and hands the result on;
-  // false when stopping in replay.
-  bool publish(ScanResult& res, const Eigen::Isometry3d& correction) {
+  // Sends the pose of `res` (unless skipped) corrected by `correction` and hands the result on,
+  // its latency counted from `completed`; false when stopping in replay.
+  bool publish(ScanResult& res, Clock::time_point completed, const Eigen::Isometry3d& correction) {
     const slam::OdometryResult& r = res.odometry;
     if (res.map_corrected) res.published = correction * r.pose;
     if ((r.flags & slam::kOdomSkipped) == 0) {
@@ -246,7 +248,7 @@ struct Pipeline::Impl {
                                           static_cast<std::uint32_t>(res.sequence),
                                           publisher.options()));
     }
-    res.latency_ms = ms_between(res.completed, Clock::now());
+    res.latency_ms = ms_between(completed, Clock::now());
     if (options.live) {
       if (!results.push(res)) results_dropped.fetch_add(1, std::memory_order_relaxed);
       return true;
@@ -260,32 +262,31 @@ struct Pipeline::Impl {
   // False when stopping.
   bool publish_unpublished(Eigen::Isometry3d& correction, bool wait, std::size_t least) {
     std::size_t published = 0;
+    bool running = true;
     while (unpublished_size > 0) {
       Unpublished& u = unpublished[unpublished_head];
-      if (u.awaits_ack) {
+      // The mapper answers the scans in the order they were handed, one answer each. Shutting
+      // down, it may not answer: what is left goes out as it is.
+      if (running && u.awaits_ack) {
         Ack ack;
-        // The mapper answers the scans in the order they were handed, one answer each.
-        while (!acks.pop(ack)) {
-          if (stopping.load(std::memory_order_relaxed)) {
-            // Shutting down: the mapper may not answer; what is left goes out as it is.
-            while (unpublished_size > 0) {
-              publish(unpublished[unpublished_head].result, correction);
-              unpublished_head = (unpublished_head + 1) % unpublished.size();
-              --unpublished_size;
-            }
-            return false;
-          }
+        bool answered = acks.pop(ack);
+        while (!answered && !stopping.load(std::memory_order_relaxed)) {
           if (!wait || published >= least) return true;
           std::this_thread::sleep_for(kPoll);
+          answered = acks.pop(ack);
         }
-        correction = ack.correction;
+        if (answered) {
+          correction = ack.correction;
+        } else {
+          running = false;
+        }
       }
-      if (!publish(u.result, correction)) return false;
+      running = publish(u.result, u.completed, correction) && running;
       unpublished_head = (unpublished_head + 1) % unpublished.size();
       --unpublished_size;
       ++published;
     }
-    return true;
+    return running;
   }
 
   // Where `n` points can go in the key pool without touching the points of a scan the mapper

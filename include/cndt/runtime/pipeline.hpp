@@ -54,7 +54,6 @@ struct ScanResult {
   std::uint64_t sequence = 0;   ///< the scan's sequence number
   double odometry_ms = 0.0;     ///< time in ConsensusOdometry::process
   double latency_ms = 0.0;      ///< from the scan's completion to its pose being published
-  std::chrono::steady_clock::time_point completed;  ///< when the scan was complete
 };
 
 struct PipelineStats {
