@@ -10,6 +10,7 @@
 
 #include "cndt/core/ring_region.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
+#include "cndt/slam/correction_blend.hpp"
 
 namespace cndt::runtime {
 namespace {
@@ -82,6 +83,7 @@ struct Pipeline::Impl {
   };
   std::vector<Unpublished> unpublished;
   std::size_t unpublished_head = 0, unpublished_size = 0;
+  slam::CorrectionBlend blend;  // odometry thread: the correction the poses are published with
   std::function<void(const slam::Mapper&, double)> keyframe_callback;
   void (*scan_callback)(void*) = nullptr;
   void* scan_context = nullptr;
@@ -114,7 +116,8 @@ struct Pipeline::Impl {
         key_full(o.keyframe_ring),
         key_free(o.keyframe_ring + 1),
         acks(o.keyframe_ring + 2),
-        results(o.result_ring) {
+        results(o.result_ring),
+        blend(o.correction_time_constant) {
     // Pool: the ring's scans, the one in the odometry's hands, one being copied in, and (live)
     // as many waiting on the input side for the ring to make room.
     slots.reserve(2 * o.scan_ring + 2);
@@ -241,8 +244,14 @@ struct Pipeline::Impl {
   // its latency counted from `completed`; false when stopping in replay.
   bool publish(ScanResult& res, Clock::time_point completed, const Eigen::Isometry3d& correction) {
     const slam::OdometryResult& r = res.odometry;
-    if (res.map_corrected) res.published = correction * r.pose;
-    if ((r.flags & slam::kOdomSkipped) == 0) {
+    const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
+    if (res.map_corrected) {
+      res.published =
+          (skipped ? blend.applied()
+                   : blend.step(correction, r.pose, static_cast<double>(r.stamp.count()) * 1e-9)) *
+          r.pose;
+    }
+    if (!skipped) {
       res.published_pose = true;
       publisher.publish(make_pose_message(r, res.published, res.map_corrected,
                                           static_cast<std::uint32_t>(res.sequence),

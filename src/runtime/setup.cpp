@@ -105,6 +105,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   mo.map.capacity = static_cast<std::size_t>(mp.capacity_voxels);
   mo.map.window_radius = mp.window_m;
   mo.update_map = mp.load.empty() || mp.mode == "update";
+  s.pipeline.correction_time_constant = mp.correction_time_constant_s;
   s.initial_pose = pose_from_xyz_rpy_deg(mp.initial_pose);
 
   const auto& rt = c.runtime;

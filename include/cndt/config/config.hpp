@@ -54,6 +54,7 @@ struct Config {
     std::int64_t keyframe_scans = 10;
     std::int64_t capacity_voxels = 2'000'000;
     double window_m = 0.0;
+    double correction_time_constant_s = 0.5;
     std::string load;             ///< prior map to localize in ("" = build one)
     std::string mode = "frozen";  ///< frozen | update (with load)
     std::vector<double> initial_pose{0, 0, 0, 0, 0, 0};  ///< x,y,z m; roll,pitch,yaw deg

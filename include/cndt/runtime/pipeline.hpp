@@ -39,8 +39,11 @@ struct PipelineOptions {
   /// that does not fit is not handed to the mapper (mapper_dropped); replay waits for room.
   std::size_t keyframe_ring_points = 1'500'000;
   std::size_t result_ring = 1024;  ///< results waiting for the consumer
-  bool live = false;               ///< drop the oldest scan on a full ring (else wait)
-  std::size_t warmup_scans = 20;   ///< allocations on the odometry thread count after these
+  /// Time constant (s) with which published poses follow a new map correction (0 = at once;
+  /// slam::CorrectionBlend).
+  double correction_time_constant = 0.0;
+  bool live = false;              ///< drop the oldest scan on a full ring (else wait)
+  std::size_t warmup_scans = 20;  ///< allocations on the odometry thread count after these
   ThreadSetup odometry_thread;
   ThreadSetup mapper_thread;
 };
