@@ -183,8 +183,8 @@ const std::vector<Field>& fields() {
       {"mapper", "correction_time_constant_s", CNDT_REF(mapper.correction_time_constant_s),
        "Published poses follow each new map correction with this time constant instead of "
        "jumping to it (0 = at once). On 120 s simulated loop and street drives 0.5 s brings the "
-       "published poses' frame-to-frame error from 15 % above the odometry's to 2 % above, the "
-       "ATE unchanged (docs/mapper.md).",
+       "published poses' frame-to-frame error from 10-15 % above the odometry's to 1-2 % above, "
+       "the ATE unchanged (docs/mapper.md).",
        "s", 0, 60},
       {"mapper", "load", CNDT_REF(mapper.load),
        "Prior map file to localize in (\"\" = build a map from scratch)."},
