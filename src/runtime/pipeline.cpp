@@ -84,6 +84,8 @@ struct Pipeline::Impl {
   std::vector<Unpublished> unpublished;
   std::size_t unpublished_head = 0, unpublished_size = 0;
   slam::CorrectionBlend blend;  // odometry thread: the correction the poses are published with
+  // The mapper's correction before its first answer: the initial pose in a prior map.
+  Eigen::Isometry3d initial_correction = Eigen::Isometry3d::Identity();
   std::function<void(const slam::Mapper&, double)> keyframe_callback;
   void (*scan_callback)(void*) = nullptr;
   void* scan_context = nullptr;
@@ -162,7 +164,9 @@ struct Pipeline::Impl {
 
   void run_odometry() {
     log_setup_problems("odometry", options.odometry_thread);
-    Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
+    // Live, poses can go out before the mapper's first answer: in a prior map they are then
+    // already in the map frame.
+    Eigen::Isometry3d correction = initial_correction;
     std::uint64_t processed = 0, base = 0, faults_base = 0;
     for (;;) {
       std::uint32_t idx = 0;
@@ -393,7 +397,10 @@ Pipeline::~Pipeline() {
 }
 
 void Pipeline::start_from(slam::NdtMap&& map, const Eigen::Isometry3d& T_map_odom) {
-  if (mapper_) mapper_->start_from(std::move(map), T_map_odom);
+  if (mapper_) {
+    mapper_->start_from(std::move(map), T_map_odom);
+    impl_->initial_correction = T_map_odom;
+  }
 }
 
 void Pipeline::on_keyframe(std::function<void(const slam::Mapper&, double)> callback) {
