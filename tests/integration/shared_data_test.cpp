@@ -155,8 +155,8 @@ TEST(SharedCaptureDetails, PositionPacketsCarryNmeaAndPps) {
 
 // A real VLP-16 on a car: four revolutions of a drive at 10.3 knots (5.30 m/s, from the
 // capture's own $GPRMC sentences; GPS speed, good to about 0.1 m/s). Each matched whole
-// revolution's step must give that speed within 10 %. Measured: 5.10 and 4.91 m/s. A match
-// held back by the ground rings, which move with the sensor, falls short by decimetres.
+// revolution's step must give that speed within 10 %. Measured: 5.10 and 4.92 m/s. A match
+// held back by the ground rings, which move with the sensor, would give far less.
 TEST(SharedCaptureDetails, OdometryOnAMovingCarAgreesWithItsGpsSpeed) {
   CNDT_REQUIRE_SHARED(path, "opendavinci-vlp16-moving/sampleShort.pcap");
   struct Run {
