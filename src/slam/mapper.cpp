@@ -304,8 +304,11 @@ void Mapper::score_and_update_map() {
       const Eigen::Vector3d q = s.pose * p;
       double c = std::numeric_limits<double>::quiet_NaN();
       if (test) {
+        // A voxel that this scan's own points created has no Cv: the map could not test it.
         const std::int64_t idx = map_.grid().index_of(map_.grid().key_of(q));
-        if (idx >= 0) c = cv_[static_cast<std::size_t>(idx)];
+        if (idx >= 0 && static_cast<std::size_t>(idx) < cv_.size()) {
+          c = cv_[static_cast<std::size_t>(idx)];
+        }
       }
       if (!std::isnan(c) && c < options_.eta) continue;
       map_.add(q, std::isnan(c) ? 1.0 : c);

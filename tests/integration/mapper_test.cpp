@@ -136,6 +136,50 @@ TEST(Mapper, Eq7GradientEqualsFiniteDifferences) {
   }
 }
 
+// A keyframe that sees something new: a wall the map has never seen, 25 points in each of its
+// voxels per scan. The first point of a scan creates the voxel; the map cannot test it, so
+// every later point of that scan in it enters too, from both scans: 50 points per voxel. (The
+// first keyframe sees a larger floor, so that the new voxels are numbered beyond any Cv
+// computed before.)
+TEST(Mapper, EveryPointOfANewVoxelEntersTheMap) {
+  std::vector<Eigen::Vector3d> room, walled;
+  for (int i = -100; i < 100; ++i) {
+    for (int j = -100; j < 100; ++j) room.emplace_back(0.1 * i + 0.05, 0.1 * j + 0.05, -1.5);
+  }
+  for (int i = -50; i < 50; ++i) {
+    for (int j = -50; j < 50; ++j) walled.emplace_back(0.1 * i + 0.05, 0.1 * j + 0.05, -1.5);
+  }
+  for (int i = -50; i < 50; ++i) {
+    for (int k = 0; k < 20; ++k) walled.emplace_back(0.1 * i + 0.05, 8.05, -1.0 + 0.1 * k + 0.05);
+  }
+  MapperOptions o;
+  o.keyframe_scans = 2;
+  o.keyframe_similarity = 0.0;
+  Mapper mapper(o);
+  const Eigen::Isometry3d at = Eigen::Isometry3d::Identity();
+  mapper.add(0.0, at, room);
+  mapper.add(0.1, at, room);
+  mapper.add(0.2, at, walled);  // closes the first keyframe: the map holds the floor
+  ASSERT_GT(mapper.map().gaussians(), 0u);
+  ASSERT_EQ(mapper.map().grid().find(Eigen::Vector3d(0.2, 8.05, -0.8)), nullptr);
+  mapper.add(0.3, at, walled);
+  mapper.flush();
+  for (const auto& r : mapper.refined()) {
+    ASSERT_LT(r.pose.translation().norm(), 1e-3);  // nothing moves
+  }
+  int voxels = 0;
+  for (int i = -10; i < 10; ++i) {
+    for (int k = 0; k < 4; ++k) {
+      const ndt::Voxel* v =
+          mapper.map().grid().find(Eigen::Vector3d(0.5 * i + 0.25, 8.05, -1.0 + 0.5 * k + 0.25));
+      ASSERT_NE(v, nullptr);
+      EXPECT_EQ(v->count, 50u) << "voxel " << i << ", " << k;
+      ++voxels;
+    }
+  }
+  EXPECT_EQ(voxels, 80);
+}
+
 TEST(Mapper, RefinesEveryScanOfAStreetDriveAndGrowsAMap) {
   Mapper mapper({});
   const DriveRun run = drive(sim::SceneKind::kStreet, 6.0, 3, 0, mapper);
