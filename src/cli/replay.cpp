@@ -159,10 +159,11 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
       ->capture_default_str();
   cmd->add_flag("--mapper", a.mapper,
                 "Run the mapper (keyframes, eq-7 refinement, map): trajectory.tum is then the "
-                "odometry corrected by the map as it stood at each scan, odometry.tum the "
-                "odometry alone, refined.tum every scan pose after its keyframe's refinement and "
+                "odometry corrected by the map as it stood at each scan (each new correction "
+                "blended in over mapper.correction_time_constant_s), odometry.tum the odometry "
+                "alone, refined.tum every scan pose after its keyframe's refinement and "
                 "refined.csv its Cm against the map. Off by default (it takes a second core; on "
-                "simulated drives it brings the ATE to about 0.2 x the odometry's, "
+                "simulated drives it brings the ATE to 0.1-0.3 x the odometry's, "
                 "docs/mapper.md). --map and --save-map imply it");
   auto* map = cmd->add_option("--map", a.map,
                               "Localize in this prior map (a cndt map file) instead of building "

@@ -167,7 +167,7 @@ const std::vector<Field>& fields() {
       {"mapper", "enabled", CNDT_REF(mapper.enabled),
        "Run the mapper thread: keyframes, eq-7 refinement, a map and the correction T_map_odom "
        "applied to published poses. Off by default (it takes a second core); on 120 s simulated "
-       "loop and street drives it brings the ATE to about 0.2 x the odometry's (docs/mapper.md)."},
+       "loop and street drives it brings the ATE to 0.1-0.3 x the odometry's (docs/mapper.md)."},
       {"mapper", "keyframe_similarity", CNDT_REF(mapper.keyframe_similarity),
        "A keyframe closes when the current scan's voxel overlap with its first scan falls below "
        "this.",
