@@ -17,16 +17,16 @@ int hex_value(char c) {
   return -1;
 }
 
-// Field `index` (0 = sentence id) of a comma-separated sentence.
-std::string_view field(std::string_view s, int index) {
-  for (int i = 0; i < index; ++i) {
-    const auto comma = s.find(',');
-    if (comma == std::string_view::npos) return {};
-    s.remove_prefix(comma + 1);
-  }
-  return s.substr(0, std::min(s.find(','), s.find('*')));
-}
 }  // namespace
+
+std::string_view nmea_field(std::string_view sentence, int index) noexcept {
+  for (int i = 0; i < index; ++i) {
+    const auto comma = sentence.find(',');
+    if (comma == std::string_view::npos) return {};
+    sentence.remove_prefix(comma + 1);
+  }
+  return sentence.substr(0, std::min(sentence.find(','), sentence.find('*')));
+}
 
 std::string_view pps_state_name(PpsState s) noexcept {
   switch (s) {
@@ -68,18 +68,18 @@ PositionError parse_position_packet(core::ByteSpan payload, PositionPacket& out)
     const int lo = hex_value(s[star + 2]);
     out.nmea_checksum_ok = hi >= 0 && lo >= 0 && static_cast<unsigned>(hi * 16 + lo) == sum;
   }
-  const std::string_view id = field(s, 0);
+  const std::string_view id = nmea_field(s, 0);
   const bool rmc = id.size() >= 6 && id.substr(3) == "RMC";
   const bool gga = id.size() >= 6 && id.substr(3) == "GGA";
-  const std::string_view time = field(s, 1);
+  const std::string_view time = nmea_field(s, 1);
   if ((rmc || gga) && time.size() >= 6 &&
       std::all_of(time.begin(), time.begin() + 6, [](char c) { return c >= '0' && c <= '9'; })) {
     auto two = [&](std::size_t i) { return (time[i] - '0') * 10 + (time[i + 1] - '0'); };
     out.utc_seconds_of_day = two(0) * 3600 + two(2) * 60 + two(4);
   }
-  if (rmc) out.fix_valid = field(s, 2) == "A";
+  if (rmc) out.fix_valid = nmea_field(s, 2) == "A";
   if (gga) {
-    const std::string_view q = field(s, 6);
+    const std::string_view q = nmea_field(s, 6);
     out.fix_valid = !q.empty() && q != "0";
   }
   return PositionError::kNone;

@@ -84,8 +84,6 @@ struct Pipeline::Impl {
   std::vector<Unpublished> unpublished;
   std::size_t unpublished_head = 0, unpublished_size = 0;
   slam::CorrectionBlend blend;  // odometry thread: the correction the poses are published with
-  // The mapper's correction before its first answer: the initial pose in a prior map.
-  Eigen::Isometry3d initial_correction = Eigen::Isometry3d::Identity();
   std::function<void(const slam::Mapper&, double)> keyframe_callback;
   void (*scan_callback)(void*) = nullptr;
   void* scan_context = nullptr;
@@ -165,8 +163,10 @@ struct Pipeline::Impl {
   void run_odometry() {
     log_setup_problems("odometry", options.odometry_thread);
     // Live, poses can go out before the mapper's first answer: in a prior map they are then
-    // already in the map frame.
-    Eigen::Isometry3d correction = initial_correction;
+    // already in the map frame. (The mapper changes its correction only for scans handed to it
+    // from here on.)
+    Eigen::Isometry3d correction =
+        mapper != nullptr ? mapper->correction() : Eigen::Isometry3d::Identity();
     std::uint64_t processed = 0, base = 0, faults_base = 0;
     for (;;) {
       std::uint32_t idx = 0;
@@ -250,10 +250,11 @@ struct Pipeline::Impl {
     const slam::OdometryResult& r = res.odometry;
     const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
     if (res.map_corrected) {
-      res.published =
-          (skipped ? blend.applied()
-                   : blend.step(correction, r.pose, static_cast<double>(r.stamp.count()) * 1e-9)) *
-          r.pose;
+      // A skipped scan has no pose to publish: the blend does not step.
+      const double stamp = static_cast<double>(r.stamp.count()) * 1e-9;
+      const Eigen::Isometry3d& applied =
+          skipped ? blend.applied() : blend.step(correction, r.pose, stamp);
+      res.published = applied * r.pose;
     }
     if (!skipped) {
       res.published_pose = true;
@@ -397,10 +398,7 @@ Pipeline::~Pipeline() {
 }
 
 void Pipeline::start_from(slam::NdtMap&& map, const Eigen::Isometry3d& T_map_odom) {
-  if (mapper_) {
-    mapper_->start_from(std::move(map), T_map_odom);
-    impl_->initial_correction = T_map_odom;
-  }
+  if (mapper_) mapper_->start_from(std::move(map), T_map_odom);
 }
 
 void Pipeline::on_keyframe(std::function<void(const slam::Mapper&, double)> callback) {

@@ -9,6 +9,7 @@
 
 #include "cndt/cli/capture.hpp"
 #include "cndt/slam/odometry.hpp"
+#include "cndt/vlp16/position_packet.hpp"
 
 namespace cndt::cli {
 namespace {
@@ -182,9 +183,8 @@ TEST(SharedCaptureDetails, OdometryOnAMovingCarAgreesWithItsGpsSpeed) {
   const auto& pos = r.value().driver.last_position;
   ASSERT_TRUE(pos.has_value() && pos->nmea_checksum_ok);
   // $GPRMC: the speed over ground in knots is the seventh field.
-  std::string field(pos->sentence());
-  for (int i = 0; i < 7; ++i) field = field.substr(field.find(',') + 1);
-  const double gps_speed = std::stod(field.substr(0, field.find(','))) * 1852.0 / 3600.0;
+  const double gps_speed =
+      std::stod(std::string(vlp16::nmea_field(pos->sentence(), 7))) * 1852.0 / 3600.0;
   ASSERT_NEAR(gps_speed, 5.30, 0.01) << pos->sentence();
   ASSERT_GE(run.whole.size(), 3u) << "flags seen " << run.flags_seen;
   for (std::size_t i = 1; i < run.whole.size(); ++i) {

@@ -28,4 +28,8 @@ enum class PositionError : std::uint8_t { kNone = 0, kWrongSize, kBadPps };
 /// Reads a position packet after checking its size; the NMEA text is optional (no GPS attached).
 PositionError parse_position_packet(core::ByteSpan payload, PositionPacket& out) noexcept;
 
+/// Field `index` (0 = sentence id) of a comma-separated NMEA sentence, without the checksum;
+/// empty when the sentence has fewer fields.
+std::string_view nmea_field(std::string_view sentence, int index) noexcept;
+
 }  // namespace cndt::vlp16
