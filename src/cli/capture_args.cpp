@@ -43,6 +43,10 @@ void add_capture_options(CLI::App& cmd, CaptureArgs& a) {
   cmd.add_option("--cut-angle", a.cut_angle_deg,
                  "Azimuth in degrees [0, 360) where one revolution ends and the next begins")
       ->capture_default_str();
+  cmd.add_flag("--no-fov-cut", a.no_fov_cut,
+               "Keep the cut angle and count every silence as packet loss, also when the sensor "
+               "is silent over the same sector every turn (by default such a field-of-view gap "
+               "is found after two turns and the cut moves into it)");
   cmd.add_option("--min-range", a.min_range_m, "Drop returns nearer than this, metres")
       ->capture_default_str();
   cmd.add_option("--max-range", a.max_range_m, "Drop returns farther than this, metres")
@@ -95,6 +99,7 @@ core::Result<CaptureOptions> to_capture_options(const CaptureArgs& a) {
   o.driver.decoder.vertical_offsets = !a.no_vertical_offsets;
   o.driver.assembler.cut_azimuth =
       static_cast<std::uint16_t>(std::lround(a.cut_angle_deg * 100.0) % 36000);
+  o.driver.assembler.cut_at_fov_gap = !a.no_fov_cut;
   o.driver.assembler.max_points = a.max_points;
   return o;
 }

@@ -106,6 +106,21 @@ std::string format_info_text(const CaptureReport& r) {
       "losses         {} packets lost in {} gaps, {} clock jumps, {} repeated or "
       "out-of-order packets dropped, {} points over capacity\n",
       a.lost_packets, a.gaps, a.time_jumps, a.stale_packets, a.points_dropped);
+  if (a.azimuth_jumps > 0) {
+    o += fmt::format(
+        "bad azimuths   {} jumps inside a packet that the next packet's clock refuted (scans "
+        "flagged time_jump)\n",
+        a.azimuth_jumps);
+  }
+  if (a.fov_gap.length > 0) {
+    o += fmt::format(
+        "field of view  silent from {:.1f} to {:.1f} deg every turn ({} silences, not counted as "
+        "loss); cut at {:.1f} deg\n",
+        a.fov_gap.start / 100.0, ((a.fov_gap.start + a.fov_gap.length) % 36000) / 100.0,
+        a.fov_silences, a.cut_azimuth / 100.0);
+  } else {
+    o += fmt::format("field of view  full turn; cut at {:.1f} deg\n", a.cut_azimuth / 100.0);
+  }
   o += fmt::format("time           {:.3f} s of sensor time, {} hour rollovers\n",
                    span_s(d.first_packet_time, d.last_packet_time), d.hour_rollovers);
   o += fmt::format("position       {} packets ({} rejected, {} with NMEA)", d.position_packets,
@@ -178,6 +193,16 @@ std::string format_info_json(const CaptureReport& r) {
   kv("gaps", std::to_string(a.gaps));
   kv("time_jumps", std::to_string(a.time_jumps));
   kv("stale_packets", std::to_string(a.stale_packets));
+  if (a.fov_gap.length > 0) {
+    kv("fov_gap",
+       fmt::format("{{\"from_deg\": {:.2f}, \"to_deg\": {:.2f}, \"silences\": {}}}",
+                   a.fov_gap.start / 100.0, ((a.fov_gap.start + a.fov_gap.length) % 36000) / 100.0,
+                   a.fov_silences));
+  } else {
+    kv("fov_gap", "null");
+  }
+  kv("cut_deg", fmt::format("{:.2f}", a.cut_azimuth / 100.0));
+  kv("azimuth_jumps", std::to_string(a.azimuth_jumps));
   kv("hour_rollovers", std::to_string(d.hour_rollovers));
   kv("duration_s", fmt::format("{:.6f}", span_s(d.first_packet_time, d.last_packet_time)));
   kv("position_packets", std::to_string(d.position_packets));

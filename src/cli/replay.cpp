@@ -79,6 +79,7 @@ core::Result<config::Config> replay_config(const ReplayArgs& a) {
   if (given(a, "--data-port")) c.sensor.data_port = ca.data_port;
   if (given(a, "--position-port")) c.sensor.position_port = ca.position_port;
   if (given(a, "--cut-angle")) c.sensor.cut_angle_deg = ca.cut_angle_deg;
+  if (given(a, "--no-fov-cut")) c.sensor.cut_at_fov_gap = !ca.no_fov_cut;
   if (given(a, "--min-range")) c.sensor.min_range_m = ca.min_range_m;
   if (given(a, "--max-range")) c.sensor.max_range_m = ca.max_range_m;
   if (given(a, "--no-vertical-offsets")) c.sensor.vertical_offsets = !ca.no_vertical_offsets;

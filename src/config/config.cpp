@@ -97,6 +97,10 @@ const std::vector<Field>& fields() {
        {"auto", "vlp16", "vlp16-hires", "hdl32e", "vlp32c"}},
       {"sensor", "cut_angle_deg", CNDT_REF(sensor.cut_angle_deg),
        "Azimuth where one revolution ends and the next begins.", "deg", 0, 359.99},
+      {"sensor", "cut_at_fov_gap", CNDT_REF(sensor.cut_at_fov_gap),
+       "When the sensor is silent over the same sector every turn (a limited field of view), "
+       "cut the revolutions inside that sector (at cut_angle_deg if it lies there, else in the "
+       "middle), and do not count the silence as packet loss."},
       {"sensor", "min_range_m", CNDT_REF(sensor.min_range_m), "Drop returns nearer than this.", "m",
        0, 1000},
       {"sensor", "max_range_m", CNDT_REF(sensor.max_range_m), "Drop returns farther than this.",

@@ -69,6 +69,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   s.driver.decoder.vertical_offsets = in.vertical_offsets;
   s.driver.assembler.cut_azimuth =
       static_cast<std::uint16_t>(std::lround(in.cut_angle_deg * 100.0) % 36000);
+  s.driver.assembler.cut_at_fov_gap = in.cut_at_fov_gap;
   s.max_points = static_cast<std::size_t>(in.max_points);
   s.driver.assembler.max_points = s.max_points;
 

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <string>
 
@@ -122,13 +124,58 @@ INSTANTIATE_TEST_SUITE_P(
       return n + "_" + std::to_string(param_info.index);
     });
 
-TEST(SharedCaptureDetails, LossyCaptureReportsItsGaps) {
+// The source notes read this capture's two silences as packet loss (about 235 of 275 packets).
+// They are a limited field of view: the sensor fires from 320.0 to 40.9 deg only. Both silences
+// begin inside a packet, at 40.9 deg, end at 320.0 deg and lie one turn (199.9 ms) apart, and the
+// 39 packets between them come at exactly one packet period. Lost packets are lost whole, so they
+// cannot leave a jump inside a packet.
+TEST(SharedCaptureDetails, SilencesOfTheLossyCaptureAreALimitedFieldOfView) {
   CNDT_REQUIRE_SHARED(path, "scanparser-vlp16-lossy/my.pcap");
   auto r = read_capture(path, {});
   ASSERT_TRUE(r);
-  EXPECT_EQ(r.value().assembler.gaps, 2u);
-  EXPECT_GT(r.value().assembler.lost_packets, 200u);  // ~275 expected, 41 present
+  const vlp16::AssemblerStats& a = r.value().assembler;
+  EXPECT_EQ(a.gaps, 0u);
+  EXPECT_EQ(a.lost_packets, 0u);
+  EXPECT_EQ(a.fov_silences, 2u);
+  EXPECT_EQ(a.azimuth_jumps, 0u);
+  EXPECT_NEAR(a.fov_gap.start, 4090, 15);    // 40.9 deg
+  EXPECT_NEAR(a.fov_gap.length, 27910, 30);  // to 320.0 deg
+  EXPECT_NEAR(a.cut_azimuth, 18045, 30);     // the middle of the silence
   EXPECT_TRUE(r.value().driver.last_position->nmea_checksum_ok);
+  // Taken as loss, as the notes take it: two gaps and most of two turns lost.
+  CaptureOptions as_loss;
+  as_loss.driver.assembler.cut_at_fov_gap = false;
+  auto l = read_capture(path, as_loss);
+  ASSERT_TRUE(l);
+  EXPECT_EQ(l.value().assembler.gaps, 2u);
+  EXPECT_GT(l.value().assembler.lost_packets, 200u);  // ~275 expected, 41 present
+  EXPECT_EQ(l.value().assembler.fov_gap.length, 0u);
+}
+
+// A VLP-32C set to about half a turn: once the silence is learned, every pass is a whole scan.
+TEST(SharedCaptureDetails, HalfTurnFieldOfViewGivesWholeScans) {
+  CNDT_REQUIRE_SHARED(path, "nebula-vlp32c/vlp32c_5scans.pcap");
+  CaptureOptions opt;
+  opt.driver.model = std::nullopt;  // auto: a VLP-32C
+  auto r = read_capture(path, opt);
+  ASSERT_TRUE(r);
+  const CaptureReport& rep = r.value();
+  EXPECT_EQ(rep.assembler.lost_packets, 0u);
+  EXPECT_EQ(rep.assembler.gaps, 0u);
+  EXPECT_EQ(rep.assembler.fov_silences, 5u);
+  EXPECT_EQ(rep.assembler.complete_scans, 4u);
+  // The one whole scan before the gap was learned is cut at 0 deg and spans the silence (one
+  // turn, 0.1 s); after it each is one pass of 75-76 packets over 180 deg, about 0.05 s.
+  int whole = 0, passes = 0;
+  for (const auto& s : rep.scans) {
+    if (s.flags != 0) continue;
+    ++whole;
+    EXPECT_GT(s.points, 26'000u);
+    const double duration = std::chrono::duration<double>(s.end - s.stamp).count();
+    if (std::abs(duration - 0.05) < 0.003) ++passes;
+  }
+  EXPECT_EQ(whole, 4);
+  EXPECT_EQ(passes, 3);
 }
 
 TEST(SharedCaptureDetails, EarlyVlp16FirmwareReportingHdl32eIsDecodedAsConfigured) {

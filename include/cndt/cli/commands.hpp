@@ -28,6 +28,7 @@ struct CaptureArgs {
   double min_range_m = 0.4;
   double max_range_m = 130.0;
   bool no_vertical_offsets = false;
+  bool no_fov_cut = false;
   std::size_t max_points = 150'000;
 };
 void add_capture_options(CLI::App& cmd, CaptureArgs& args);

@@ -25,6 +25,7 @@ struct Config {
     std::int64_t packet_queue = 4096;
     std::string model = "auto";
     double cut_angle_deg = 0.0;
+    bool cut_at_fov_gap = true;  ///< move the cut into a sector silent every turn
     double min_range_m = 0.4;
     double max_range_m = 130.0;
     bool vertical_offsets = true;

@@ -1,9 +1,12 @@
 // Cuts the stream of decoded packets into revolutions. The cut is made per firing sequence where
 // the rotor azimuth passes the cut angle, never on packet boundaries, so every scan covers exactly
-// one turn. Packet loss is found from the sensor clock.
+// one turn. Packet loss is found from the sensor clock. A sensor set to a limited field of view
+// is silent over the same sector every revolution: once two revolutions in a row show that
+// silence, the cut moves into the middle of it and the silence no longer counts as loss.
 #pragma once
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 
 #include "cndt/core/scan.hpp"
@@ -15,6 +18,15 @@ struct AssemblerOptions {
   std::uint16_t cut_azimuth = 0;                 ///< 0.01 deg, [0, 36000)
   std::size_t max_points = 150'000;              ///< point capacity of one scan, allocated once
   std::chrono::nanoseconds max_gap{50'000'000};  ///< a silence longer than this ends the scan
+  bool cut_at_fov_gap = true;  ///< move the cut into a silent sector seen every revolution
+};
+
+/// A sector where the sensor sends nothing, every revolution (a limited field of view).
+struct FovGap {
+  std::uint16_t start = 0;       ///< azimuth of the last firing before the silence, 0.01 deg
+  std::uint16_t length = 0;      ///< azimuth the silence spans, 0.01 deg; 0 = none found
+  std::uint32_t packets = 0;     ///< packets the sensor would have sent over it
+  std::int64_t duration_ns = 0;  ///< time from the last firing before to the first after
 };
 
 struct AssemblerStats {
@@ -26,6 +38,10 @@ struct AssemblerStats {
   std::uint64_t stale_packets = 0;   ///< repeated or overlapping an earlier packet; dropped
   std::uint64_t points = 0;          ///< points in handed-out scans
   std::uint64_t points_dropped = 0;  ///< points refused for capacity
+  std::uint64_t fov_silences = 0;    ///< silences over the field-of-view gap, not counted as loss
+  std::uint64_t azimuth_jumps = 0;   ///< jumps inside a packet that the next packet's time refuted
+  FovGap fov_gap;                    ///< the field-of-view gap, once found
+  std::uint16_t cut_azimuth = 0;     ///< the cut in use, 0.01 deg (moved into the gap once found)
 };
 
 class ScanAssembler {
@@ -47,17 +63,49 @@ class ScanAssembler {
   [[nodiscard]] const AssemblerStats& stats() const noexcept { return stats_; }
 
  private:
-  enum class Continuity { kContinuous, kLoss, kGap, kJump, kStale };
+  enum class Continuity { kContinuous, kLoss, kGap, kJump, kStale, kFovFound };
   // Compares the packet's time with the previous packet's: loss, long silence or clock jump.
   Continuity check_continuity(const DecodedPacket& packet, std::chrono::nanoseconds packet_time,
-                              std::uint32_t& lost) noexcept;
+                              std::uint32_t& lost);
+  // A silence of `missing` packet periods ended at this packet: takes out what the field-of-view
+  // gap explains (learning the gap from two revolutions in a row) and says what remains.
+  Continuity classify_silence(const DecodedPacket& packet, std::chrono::nanoseconds packet_time,
+                              std::chrono::nanoseconds dt, std::uint32_t missing,
+                              std::uint32_t& lost);
+  // Takes a silence over `length` (0.01 deg) from azimuth `from`, ended at `end`, as one turn of a
+  // field-of-view gap when the silence before covered the same sector one turn earlier; then
+  // records the gap and sets pending_cut_. A silence wide enough for a field of view becomes the
+  // silence before; a shorter one is left out.
+  bool learn_fov_gap(int from, int length, std::chrono::nanoseconds end, std::uint32_t missing,
+                     std::chrono::nanoseconds duration);
+  // Where, inside a packet, the azimuth jumps over a sector: a sensor with a limited field of view
+  // fills the packet's last blocks from the start of the next pass, fired that much later.
+  struct Skip {
+    int at = 0;                 // first firing after the jump; firing_count = none
+    int from = 0, length = 0;   // the sector jumped over, 0.01 deg
+    std::int64_t extra_ns = 0;  // how much later than the packet's timing those firings fired
+    int new_cut = -1;           // the cut moves here at the skip (a gap just found); -1 = stays
+  };
+  [[nodiscard]] Skip find_skip(const DecodedPacket& packet) const noexcept;
+  // Finds a skip in the packet and takes it as a field-of-view silence: learns the gap from it,
+  // and moves the stream's time on past it until the next packet confirms or refutes the delay.
+  Skip take_skip(const DecodedPacket& packet, std::chrono::nanoseconds packet_time);
+  // The packet after a skip: arrived as late as the skip said (the delay is corrected from its
+  // clock), or on the packet's own timing (the skip was a bad azimuth, not a silence: the
+  // stream's time goes back).
+  void check_skip_delay(const DecodedPacket& packet, std::chrono::nanoseconds packet_time) noexcept;
+  // How far (0.01 deg) two azimuths of the same sector may differ: 1.5 packets of rotation.
+  [[nodiscard]] int azimuth_tolerance() const noexcept;
+  // Notes the rotor's speed and the last azimuth of a packet that was taken.
+  void note_azimuths(const DecodedPacket& packet, const Skip& skip) noexcept;
   template <class Sink>
   void finish(Sink&& sink, std::uint32_t extra_flags);
   void start_scan(std::chrono::nanoseconds stamp, int relative_azimuth) noexcept;
   // Copies the points of firings [first, last) into the scan (up to its capacity), their times
-  // rebased from the packet onto the scan stamp, and moves the scan's end to the last firing.
+  // rebased from the packet onto the scan stamp (plus `extra_ns` past a skip), and moves the
+  // scan's end to the last firing.
   void append(const DecodedPacket& packet, int first, int last,
-              std::chrono::nanoseconds packet_time) noexcept;
+              std::chrono::nanoseconds packet_time, std::int64_t extra_ns) noexcept;
   // Charges `lost` packets to the scan they belonged to: when the cut fell among them, those
   // before it to the scan in progress and the rest to the next one.
   void attribute_loss(std::uint32_t lost, const DecodedPacket& packet) noexcept;
@@ -73,6 +121,17 @@ class ScanAssembler {
   std::chrono::nanoseconds last_packet_time_{0};
   std::chrono::nanoseconds last_point_time_{0};  // latest firing accepted so far
   int last_rel_ = 0;
+  // Field-of-view gap detection.
+  bool have_last_azimuth_ = false;
+  int last_azimuth_ = 0;         // of the last firing taken
+  double azimuth_per_ns_ = 0.0;  // rotor speed from the latest packet, 0.01 deg per ns
+  struct Silence {
+    int from = 0, length = 0;         // 0.01 deg
+    std::chrono::nanoseconds end{0};  // time of the firing that ended it
+    bool valid = false;
+  } last_silence_;
+  std::uint16_t pending_cut_ = 0;          // the cut a newly found gap asks for
+  std::int64_t unconfirmed_shift_ns_ = 0;  // a skip's delay, until the next packet shows it
   AssemblerStats stats_;
 };
 
@@ -118,27 +177,47 @@ void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds pa
       break;
     case Continuity::kStale:
       return;  // a duplicate or a packet from the past: its firings would run time backwards
+    case Continuity::kFovFound:
+      // The cut moved into the silence just ended: the scan in progress ends here.
+      finish(sink, core::kScanGapCut);
+      next_partial_ = false;
+      break;
   }
-  // Firings go to the open scan in runs: a run ends where the azimuth passes the cut.
+  // A skip inside the packet is a silence too (the packet's timing does not show it).
+  const Skip skip = take_skip(packet, packet_time);
+  // Firings go to the open scan in runs: a run ends where the azimuth passes the cut, and at a
+  // skip.
   int run = 0;  // first firing of the run not yet copied
   for (int i = 0; i < packet.firing_count; ++i) {
     const Firing& f = packet.firings[static_cast<std::size_t>(i)];
-    const int rel = (f.azimuth - options_.cut_azimuth + 36000) % 36000;
+    const std::int64_t extra = i >= skip.at ? skip.extra_ns : 0;
+    if (i == skip.at) {
+      append(packet, run, i, packet_time, 0);
+      run = i;
+      if (skip.new_cut >= 0) {
+        // The cut moved into the sector just skipped: the scan in progress ends here.
+        stats_.cut_azimuth = static_cast<std::uint16_t>(skip.new_cut);
+        finish(sink, core::kScanGapCut);
+        next_partial_ = false;
+      }
+    }
+    const int rel = (f.azimuth - stats_.cut_azimuth + 36000) % 36000;
     if (scan_open_ && rel < last_rel_) {
-      append(packet, run, i, packet_time);
+      append(packet, run, i, packet_time, extra);
       run = i;
       finish(sink, 0);
       next_partial_ = false;
     }
     if (!scan_open_) {
-      start_scan(packet_time + std::chrono::nanoseconds(f.offset_ns), rel);
+      start_scan(packet_time + std::chrono::nanoseconds(f.offset_ns + extra), rel);
       ++scan_.packets;
     } else if (i == 0) {
       ++scan_.packets;
     }
     last_rel_ = rel;
   }
-  append(packet, run, packet.firing_count, packet_time);
+  append(packet, run, packet.firing_count, packet_time, run >= skip.at ? skip.extra_ns : 0);
+  note_azimuths(packet, skip);
 }
 
 }  // namespace cndt::vlp16

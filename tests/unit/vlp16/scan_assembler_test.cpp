@@ -172,5 +172,137 @@ TEST(ScanAssembler, NeverGrowsPastItsCapacity) {
   EXPECT_TRUE(overflowed);
 }
 
+// A sensor set to a limited field of view: the rotor turns at 600 rpm (0.4 deg per block) but
+// blocks are fired only while the azimuth lies in [fov_start, fov_start + fov_length). Packets are
+// filled with 12 fired blocks in a row, so the packet that ends a pass carries the first blocks of
+// the next pass, fired almost a turn's silence later than the packet's timing says. The packet
+// time is the time of its first block. `lose` drops packets by index; `bad_azimuth` overwrites one
+// block's azimuth (packet index, block) with a value 90 deg off.
+struct FovRun {
+  std::vector<Collected> scans;
+  AssemblerStats stats;
+};
+FovRun run_fov(int turns, AssemblerOptions opt = {}, std::vector<int> lose = {},
+               std::pair<int, int> bad_azimuth = {-1, -1}) {
+  constexpr int kFovStart = 27000, kFovLength = 18000, kBlockStep = 40;
+  constexpr std::int64_t kBlockNs = kPeriodNs / 12;
+  Decoder dec(Model::kVlp16, {});
+  ScanAssembler as(opt, 1327.104);
+  FovRun out;
+  auto sink = [&](core::Scan& s) {
+    Collected c{s, {}, s.points.capacity()};
+    for (const auto& p : s.points) c.times.push_back(p.time_ns);
+    out.scans.push_back(std::move(c));
+  };
+  const std::int64_t t0 = 1'000'000'000'000;
+  const int blocks = turns * 36000 / kBlockStep;
+  std::vector<std::pair<int, std::int64_t>> fired;  // azimuth, time
+  for (int b = 0; b < blocks; ++b) {
+    const int az = (kFovStart + 2000 + b * kBlockStep) % 36000;
+    if ((az - kFovStart + 36000) % 36000 < kFovLength) fired.emplace_back(az, t0 + b * kBlockNs);
+  }
+  DecodedPacket dp;
+  for (std::size_t k = 0; (k + 1) * 12 <= fired.size(); ++k) {
+    if (std::find(lose.begin(), lose.end(), static_cast<int>(k)) != lose.end()) continue;
+    test::PacketBuilder pb;
+    for (std::size_t i = 0; i < 12; ++i) {
+      int az = fired[k * 12 + i].first;
+      if (static_cast<int>(k) == bad_azimuth.first && static_cast<int>(i) == bad_azimuth.second) {
+        az = (az + 9000) % 36000;
+      }
+      pb.azimuth(static_cast<int>(i), static_cast<std::uint16_t>(az));
+    }
+    pb.all_records(5000, 10);
+    PacketHeader h;
+    EXPECT_EQ(validate_data_packet(pb.span(), h), PacketError::kNone);
+    dec.decode(pb.span(), h, dp);
+    as.add(dp, nanoseconds(fired[k * 12].second), sink);
+  }
+  as.flush(sink);
+  out.stats = as.stats();
+  return out;
+}
+
+TEST(ScanAssembler, LimitedFieldOfViewMovesTheCutIntoTheSilence) {
+  const FovRun r = run_fov(8);
+  // The silence runs from the last firing sequence before 90 deg (89.8) to 270 deg, and is
+  // learned on its second turn: the cut moves to its middle.
+  EXPECT_EQ(r.stats.fov_gap.start, 8980);
+  EXPECT_EQ(r.stats.fov_gap.length, 18020);
+  EXPECT_NEAR(r.stats.cut_azimuth, 17990, 40);
+  // The rotor starts at 290 deg: 8 turns pass the silent sector 8 times, none of it loss.
+  EXPECT_EQ(r.stats.fov_silences, 8u);
+  EXPECT_EQ(r.stats.lost_packets, 0u);
+  EXPECT_EQ(r.stats.gaps, 0u);
+  EXPECT_EQ(r.stats.azimuth_jumps, 0u);
+  const auto azimuth_of = [](const core::Point& p) {
+    return std::fmod(std::atan2(-p.y, p.x) * 18000.0 / 3.141592653589793 + 36000.0, 36000.0);
+  };
+  int whole = 0, in_gap_cut = 0;
+  std::int64_t last_stamp = 0;
+  for (std::size_t i = 0; i < r.scans.size(); ++i) {
+    const core::Scan& s = r.scans[i].scan;
+    if (!s.complete()) continue;
+    ++whole;
+    // One pass: 450 blocks of 2 sequences of 16 points.
+    EXPECT_EQ(s.points.size(), 450u * 32u) << "scan " << i;
+    const auto& t = r.scans[i].times;
+    EXPECT_TRUE(std::is_sorted(t.begin(), t.end())) << "scan " << i;
+    // Each point was fired when the rotor stood at its azimuth, silence or not: 0.4 deg per
+    // 110.592 us from the scan's first point.
+    const auto& p = s.points;
+    const double first = azimuth_of(p.front());
+    for (std::size_t j = 0; j < p.size(); j += 997) {
+      const double swept = std::fmod(azimuth_of(p[j]) - first + 36000.0, 36000.0);
+      EXPECT_NEAR(swept, p[j].time_ns * (40.0 / 110'592.0), 30.0) << "scan " << i << " pt " << j;
+    }
+    if (std::abs(first - 27000.0) > 30.0) continue;  // cut at 0 deg, before the gap was learned
+    // Cut in the gap: the pass alone, 449 blocks and a sequence, and a turn after the one before.
+    ++in_gap_cut;
+    const double duration_ms = static_cast<double>((s.end - s.stamp).count()) * 1e-6;
+    EXPECT_NEAR(duration_ms, 449 * 0.110592 + 0.055296, 0.01) << "scan " << i;
+    if (last_stamp != 0) {
+      EXPECT_EQ(s.stamp.count() - last_stamp, 900 * (kPeriodNs / 12)) << "scan " << i;
+    }
+    last_stamp = s.stamp.count();
+  }
+  EXPECT_GE(whole, 6);
+  EXPECT_GE(in_gap_cut, 5);
+}
+
+TEST(ScanAssembler, LimitedFieldOfViewCanBeTakenAsLoss) {
+  AssemblerOptions opt;
+  opt.cut_at_fov_gap = false;
+  const FovRun r = run_fov(4, opt);
+  EXPECT_EQ(r.stats.fov_gap.length, 0u);
+  EXPECT_EQ(r.stats.fov_silences, 0u);
+  EXPECT_GT(r.stats.lost_packets, 100u);
+  for (const auto& c : r.scans) EXPECT_FALSE(c.scan.complete());
+}
+
+TEST(ScanAssembler, LossInsideALimitedFieldOfViewIsStillCounted) {
+  // Packets 200 and 201 lie in the fifth pass, well after the gap was learned.
+  const FovRun r = run_fov(8, {}, {200, 201});
+  EXPECT_EQ(r.stats.lost_packets, 2u);
+  EXPECT_EQ(r.stats.gaps, 1u);
+  EXPECT_GT(r.stats.fov_gap.length, 0u);
+  std::uint32_t lossy = 0;
+  for (const auto& c : r.scans) lossy += (c.scan.flags & core::kScanPacketLoss) ? 1u : 0u;
+  EXPECT_EQ(lossy, 1u);
+}
+
+TEST(ScanAssembler, AJumpInsideAPacketThatTheClockDoesNotShowIsABadAzimuth) {
+  // One block 90 deg off in the middle of a pass: the next packet comes on time, so the firings
+  // after the jump were not fired later, and no packet after it may be lost or dropped.
+  const FovRun r = run_fov(6, {}, {}, {160, 5});
+  EXPECT_EQ(r.stats.azimuth_jumps, 1u);
+  EXPECT_EQ(r.stats.stale_packets, 0u);
+  EXPECT_EQ(r.stats.lost_packets, 0u);
+  EXPECT_GT(r.stats.fov_gap.length, 0u);
+  int jumped = 0;
+  for (const auto& c : r.scans) jumped += (c.scan.flags & core::kScanTimeJump) ? 1 : 0;
+  EXPECT_EQ(jumped, 1);
+}
+
 }  // namespace
 }  // namespace cndt::vlp16
