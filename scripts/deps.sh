@@ -6,7 +6,7 @@ need=(cmake ninja-build g++ pkg-config libeigen3-dev libboost-dev libspdlog-dev 
       libpcap-dev libtomlplusplus-dev libcli11-dev libsystemd-dev libgtest-dev libgmock-dev
       libbenchmark-dev ccache)
 if [[ "${1:-build}" == "test" ]]; then
-  need+=(clang libclang-rt-14-dev)
+  need+=(clang libclang-rt-14-dev valgrind)
 fi
 missing=()
 for p in "${need[@]}"; do

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The whole test suite: unit and integration tests in an optimised build, the same tests under
-# AddressSanitizer + UndefinedBehaviorSanitizer, the threaded runtime under ThreadSanitizer, and
+# The whole test suite: unit and integration tests in an optimised build, the fast ones and a
+# short replay under valgrind memcheck, the same tests under AddressSanitizer +
+# UndefinedBehaviorSanitizer, the threaded runtime under ThreadSanitizer, and
 # every libFuzzer target for a bounded time.
 # Tests read real captures from ../shared/data when it exists (they skip, saying so, otherwise).
 set -euo pipefail
@@ -12,6 +13,9 @@ bash scripts/deps.sh test
 echo "== build and test (RelWithDebInfo)"
 bash scripts/build.sh build/test -DCMAKE_BUILD_TYPE=RelWithDebInfo
 ctest --test-dir build/test --output-on-failure -j 2
+
+echo "== uninitialised reads under valgrind memcheck"
+bash scripts/memcheck.sh build/test
 
 echo "== build and test (ASan + UBSan)"
 bash scripts/build.sh build/asan -DCMAKE_BUILD_TYPE=Debug -DCNDT_SANITIZE=address,undefined \
