@@ -6,12 +6,14 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -121,6 +123,20 @@ struct MapperOutputs {
   std::vector<double> map_cm, mapper_ms;
 };
 
+// One cloud file where a capture or a folder of clouds belongs: says what to pass instead.
+std::optional<core::Error> check_not_one_cloud(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return std::nullopt;
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (ext != ".bin" && ext != ".pcd" && ext != ".ply") return std::nullopt;
+  const std::string folder = std::filesystem::path(path).parent_path().string();
+  return core::Error{
+      core::kExitUsage,
+      fmt::format("'{}' is one cloud file: replay takes a pcap or pcapng capture, or a folder of "
+                  "clouds with one scan per file (KITTI .bin or PCD, in name order), such as '{}'",
+                  path, folder.empty() ? "." : folder)};
+}
 }  // namespace
 
 void register_replay(CLI::App& app, ReplayArgs& a) {
@@ -197,6 +213,7 @@ int run_replay(const ReplayArgs& a) {
   auto cfg = replay_config(a);
   if (!cfg) return fail(cfg.error());
   const config::Config& c = cfg.value();
+  if (auto err = check_not_one_cloud(a.capture)) return fail(*err);
   auto setup_r = runtime::make_setup(c);
   if (!setup_r) return fail(setup_r.error());
   runtime::Setup& setup = setup_r.value();

@@ -247,6 +247,13 @@ TEST(CliReplay, CloudFoldersReplayAndBadCloudsAreNamed) {
   r = run("replay " + dir.file("empty") + " --out " + dir.file("r3"));
   EXPECT_EQ(r.code, 65) << r.output;
   EXPECT_NE(r.output.find("no .bin or .pcd"), std::string::npos) << r.output;
+
+  // One cloud where the folder belongs: a usage error that names the folder to pass.
+  r = run("replay " + dir.file("d/000001.pcd") + " --out " + dir.file("r4"));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(error_lines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("is one cloud file"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("'" + dir.file("d") + "'"), std::string::npos) << r.output;
 }
 
 }  // namespace
