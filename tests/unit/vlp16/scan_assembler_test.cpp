@@ -270,6 +270,23 @@ TEST(ScanAssembler, LimitedFieldOfViewMovesTheCutIntoTheSilence) {
   EXPECT_GE(in_gap_cut, 5);
 }
 
+TEST(ScanAssembler, AConfiguredCutInsideTheSilenceStays) {
+  AssemblerOptions opt;
+  opt.cut_azimuth = 12000;  // 120 deg: inside the silent sector from 89.8 to 270 deg
+  const FovRun r = run_fov(6, opt);
+  EXPECT_EQ(r.stats.fov_gap.length, 18020);
+  EXPECT_EQ(r.stats.cut_azimuth, 12000);
+  EXPECT_EQ(r.stats.lost_packets, 0u);
+  // The cut never moved, so no scan was ended early: the first is partial, the rest whole.
+  int whole = 0;
+  for (std::size_t i = 1; i + 1 < r.scans.size(); ++i) {
+    EXPECT_TRUE(r.scans[i].scan.complete()) << "scan " << i;
+    EXPECT_EQ(r.scans[i].scan.points.size(), 450u * 32u) << "scan " << i;
+    ++whole;
+  }
+  EXPECT_GE(whole, 4);
+}
+
 TEST(ScanAssembler, LimitedFieldOfViewCanBeTakenAsLoss) {
   AssemblerOptions opt;
   opt.cut_at_fov_gap = false;
