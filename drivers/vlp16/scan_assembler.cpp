@@ -254,7 +254,7 @@ void ScanAssembler::check_skip_delay(const DecodedPacket& packet,
   --stats_.fov_silences;
   last_packet_time_ -= std::chrono::nanoseconds(shift);
   last_point_time_ -= std::chrono::nanoseconds(shift);
-  if (scan_open_) scan_.flags |= core::kScanTimeJump;
+  skip_refuted_ = true;
 }
 
 void ScanAssembler::note_azimuths(const DecodedPacket& packet, const Skip& skip) noexcept {

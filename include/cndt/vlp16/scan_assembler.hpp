@@ -92,7 +92,7 @@ class ScanAssembler {
   Skip take_skip(const DecodedPacket& packet, std::chrono::nanoseconds packet_time);
   // The packet after a skip: arrived as late as the skip said (the delay is corrected from its
   // clock), or on the packet's own timing (the skip was a bad azimuth, not a silence: the
-  // stream's time goes back).
+  // stream's time goes back and skip_refuted_ asks add() to end the scan in progress).
   void check_skip_delay(const DecodedPacket& packet, std::chrono::nanoseconds packet_time) noexcept;
   // How far (0.01 deg) two azimuths of the same sector may differ: 1.5 packets of rotation.
   [[nodiscard]] int azimuth_tolerance() const noexcept;
@@ -132,6 +132,7 @@ class ScanAssembler {
   } last_silence_;
   std::uint16_t pending_cut_ = 0;          // the cut a newly found gap asks for
   std::int64_t unconfirmed_shift_ns_ = 0;  // a skip's delay, until the next packet shows it
+  bool skip_refuted_ = false;  // the scan in progress holds firings given a delay they did not have
   AssemblerStats stats_;
 };
 
@@ -160,7 +161,15 @@ template <class Sink>
 void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds packet_time,
                         Sink&& sink) {
   std::uint32_t lost = 0;
-  switch (check_continuity(packet, packet_time, lost)) {
+  const Continuity continuity = check_continuity(packet, packet_time, lost);
+  if (skip_refuted_) {
+    // This packet's firings would come before the ones already given the refuted delay: the
+    // scan ends there, so that its point times never decrease.
+    skip_refuted_ = false;
+    finish(sink, core::kScanTimeJump);
+    next_partial_ = true;
+  }
+  switch (continuity) {
     case Continuity::kContinuous:
       break;
     case Continuity::kLoss:

@@ -316,8 +316,13 @@ TEST(ScanAssembler, AJumpInsideAPacketThatTheClockDoesNotShowIsABadAzimuth) {
   EXPECT_EQ(r.stats.stale_packets, 0u);
   EXPECT_EQ(r.stats.lost_packets, 0u);
   EXPECT_GT(r.stats.fov_gap.length, 0u);
+  // The scan holding those firings ends before the next packet's: point times never decrease.
   int jumped = 0;
-  for (const auto& c : r.scans) jumped += (c.scan.flags & core::kScanTimeJump) ? 1 : 0;
+  for (const auto& c : r.scans) {
+    jumped += (c.scan.flags & core::kScanTimeJump) ? 1 : 0;
+    EXPECT_TRUE(std::is_sorted(c.times.begin(), c.times.end()));
+    EXPECT_GE(c.scan.end, c.scan.stamp);
+  }
   EXPECT_EQ(jumped, 1);
 }
 
