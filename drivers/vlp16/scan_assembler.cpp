@@ -186,6 +186,29 @@ ScanAssembler::Skip ScanAssembler::find_skip(const DecodedPacket& packet) const 
   return skip;
 }
 
+bool ScanAssembler::retime_after_skip(std::int64_t fix) noexcept {
+  const bool whole = shifted_stamp_;
+  const std::size_t from = shifted_from_;
+  shifted_stamp_ = false;
+  shifted_from_ = kNoShift;
+  if (!scan_open_ || fix == 0) return true;
+  auto& pts = scan_.points;
+  if (whole) {
+    // The scan began after the skip: its stamp moves and its point offsets stay.
+    scan_.stamp += std::chrono::nanoseconds(fix);
+    scan_.end += std::chrono::nanoseconds(fix);
+    return true;
+  }
+  if (from >= pts.size()) return true;  // none of the open scan's points came after the skip
+  const std::int64_t before = from > 0 ? pts[from - 1].time_ns : 0;
+  if (static_cast<std::int64_t>(pts[from].time_ns) + fix < before) return false;
+  for (std::size_t i = from; i < pts.size(); ++i) {
+    pts[i].time_ns = static_cast<std::uint32_t>(static_cast<std::int64_t>(pts[i].time_ns) + fix);
+  }
+  scan_.end += std::chrono::nanoseconds(fix);
+  return true;
+}
+
 int ScanAssembler::azimuth_tolerance() const noexcept {
   return static_cast<int>(std::ceil(1.5 * azimuth_per_ns_ * period_ns_));
 }
@@ -228,6 +251,10 @@ void ScanAssembler::check_skip_delay(const DecodedPacket& packet,
   const std::int64_t shift = unconfirmed_shift_ns_;
   unconfirmed_shift_ns_ = 0;
   if (shift <= 0) return;
+  const auto forget_tail = [this] {
+    shifted_stamp_ = false;
+    shifted_from_ = kNoShift;
+  };
   // Packets lost between the skip's packet and this one, by the azimuth the rotor moved.
   const double packet_arc = azimuth_per_ns_ * period_ns_;
   double lost = 0.0;
@@ -241,13 +268,20 @@ void ScanAssembler::check_skip_delay(const DecodedPacket& packet,
   // The delay was reckoned from the rotor's speed over a few packets: allow a tenth of it.
   const double slack = 0.1 * static_cast<double>(shift) + period_ns_;
   if (std::abs(late) <= slack) {
-    // As late as the skip said: a silence over a sector. The packet's clock gives the delay.
-    const auto fix = std::chrono::nanoseconds(std::llround(late));
-    last_packet_time_ += fix;
-    last_point_time_ += fix;
-    return;
+    // As late as the skip said: a silence over a sector. The packet's clock gives the delay, and
+    // the firings after the skip move with it (unless that would put them before the firings
+    // ahead of the skip: then the clock does not agree with the skip after all).
+    const std::int64_t fix = std::llround(late);
+    if (retime_after_skip(fix)) {
+      last_packet_time_ += std::chrono::nanoseconds(fix);
+      last_point_time_ += std::chrono::nanoseconds(fix);
+      return;
+    }
+  } else if (late > 0.0) {
+    forget_tail();
+    return;  // later still: the silence check that follows counts it
   }
-  if (late > 0.0) return;  // later still: the silence check that follows counts it
+  forget_tail();
   // On the packet's own timing: the jump was a bad azimuth, and the firings after it were given
   // times that they did not have.
   ++stats_.azimuth_jumps;

@@ -94,6 +94,9 @@ class ScanAssembler {
   // clock), or on the packet's own timing (the skip was a bad azimuth, not a silence: the
   // stream's time goes back and skip_refuted_ asks add() to end the scan in progress).
   void check_skip_delay(const DecodedPacket& packet, std::chrono::nanoseconds packet_time) noexcept;
+  // Moves the open scan's firings after the last skip by `fix` ns (the skip's delay as the next
+  // packet's clock gives it); false when that would put them before the firings ahead of it.
+  bool retime_after_skip(std::int64_t fix) noexcept;
   // How far (0.01 deg) two azimuths of the same sector may differ: 1.5 packets of rotation.
   [[nodiscard]] int azimuth_tolerance() const noexcept;
   // Notes the rotor's speed and the last azimuth of a packet that was taken.
@@ -133,6 +136,11 @@ class ScanAssembler {
   std::uint16_t pending_cut_ = 0;          // the cut a newly found gap asks for
   std::int64_t unconfirmed_shift_ns_ = 0;  // a skip's delay, until the next packet shows it
   bool skip_refuted_ = false;  // the scan in progress holds firings given a delay they did not have
+  // Where the open scan's firings after the last skip begin, for retime_after_skip: its points
+  // from shifted_from_ on, or the whole scan (shifted_stamp_) when it began after the skip.
+  static constexpr std::size_t kNoShift = static_cast<std::size_t>(-1);
+  std::size_t shifted_from_ = kNoShift;
+  bool shifted_stamp_ = false;
   AssemblerStats stats_;
 };
 
@@ -197,6 +205,7 @@ void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds pa
   // Firings go to the open scan in runs: a run ends where the azimuth passes the cut, and at a
   // skip.
   int run = 0;  // first firing of the run not yet copied
+  bool started_after_skip = false;
   for (int i = 0; i < packet.firing_count; ++i) {
     const Firing& f = packet.firings[static_cast<std::size_t>(i)];
     const std::int64_t extra = i >= skip.at ? skip.extra_ns : 0;
@@ -218,6 +227,7 @@ void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds pa
       next_partial_ = false;
     }
     if (!scan_open_) {
+      started_after_skip = i >= skip.at;
       start_scan(packet_time + std::chrono::nanoseconds(f.offset_ns + extra), rel);
       ++scan_.packets;
     } else if (i == 0) {
@@ -225,7 +235,12 @@ void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds pa
     }
     last_rel_ = rel;
   }
+  const std::size_t tail_from = scan_.points.size();
   append(packet, run, packet.firing_count, packet_time, run >= skip.at ? skip.extra_ns : 0);
+  if (skip.at < packet.firing_count) {
+    shifted_stamp_ = started_after_skip;
+    shifted_from_ = started_after_skip ? 0 : tail_from;
+  }
   note_azimuths(packet, skip);
 }
 

@@ -177,13 +177,14 @@ TEST(ScanAssembler, NeverGrowsPastItsCapacity) {
 // filled with 12 fired blocks in a row, so the packet that ends a pass carries the first blocks of
 // the next pass, fired almost a turn's silence later than the packet's timing says. The packet
 // time is the time of its first block. `lose` drops packets by index; `bad_azimuth` overwrites one
-// block's azimuth (packet index, block) with a value 90 deg off.
+// block's azimuth (packet index, block) with a value 90 deg off; `silence_error_ns` makes every
+// silence that much longer (or shorter) than the rotor's speed before it predicts.
 struct FovRun {
   std::vector<Collected> scans;
   AssemblerStats stats;
 };
 FovRun run_fov(int turns, AssemblerOptions opt = {}, std::vector<int> lose = {},
-               std::pair<int, int> bad_azimuth = {-1, -1}) {
+               std::pair<int, int> bad_azimuth = {-1, -1}, std::int64_t silence_error_ns = 0) {
   constexpr int kFovStart = 27000, kFovLength = 18000, kBlockStep = 40;
   constexpr std::int64_t kBlockNs = kPeriodNs / 12;
   Decoder dec(Model::kVlp16, {});
@@ -197,9 +198,14 @@ FovRun run_fov(int turns, AssemblerOptions opt = {}, std::vector<int> lose = {},
   const std::int64_t t0 = 1'000'000'000'000;
   const int blocks = turns * 36000 / kBlockStep;
   std::vector<std::pair<int, std::int64_t>> fired;  // azimuth, time
+  std::int64_t skew = 0;  // each silence lasts silence_error_ns longer than the rotor's pace says
+  bool in_fov = true;
   for (int b = 0; b < blocks; ++b) {
     const int az = (kFovStart + 2000 + b * kBlockStep) % 36000;
-    if ((az - kFovStart + 36000) % 36000 < kFovLength) fired.emplace_back(az, t0 + b * kBlockNs);
+    const bool fires = (az - kFovStart + 36000) % 36000 < kFovLength;
+    if (fires && !in_fov) skew += silence_error_ns;
+    in_fov = fires;
+    if (fires) fired.emplace_back(az, t0 + b * kBlockNs + skew);
   }
   DecodedPacket dp;
   for (std::size_t k = 0; (k + 1) * 12 <= fired.size(); ++k) {
@@ -285,6 +291,32 @@ TEST(ScanAssembler, AConfiguredCutInsideTheSilenceStays) {
     ++whole;
   }
   EXPECT_GE(whole, 4);
+}
+
+TEST(ScanAssembler, TheNextPacketsClockCorrectsTheDelayAfterASkip) {
+  // The rotor crosses the silent sector 3 ms faster or slower than its speed before said: the
+  // firings after each skip take the time the next packet's clock gives, both ways.
+  for (const std::int64_t error : {-3'000'000, 3'000'000}) {
+    const FovRun r = run_fov(6, {}, {}, {-1, -1}, error);
+    EXPECT_GT(r.stats.fov_gap.length, 0u) << error;
+    EXPECT_EQ(r.stats.lost_packets, 0u) << error;
+    EXPECT_EQ(r.stats.azimuth_jumps, 0u) << error;
+    EXPECT_EQ(r.stats.stale_packets, 0u) << error;
+    int whole = 0;
+    for (std::size_t i = 0; i < r.scans.size(); ++i) {
+      const auto& t = r.scans[i].times;
+      EXPECT_TRUE(std::is_sorted(t.begin(), t.end())) << error << " scan " << i;
+      if (!r.scans[i].scan.complete()) continue;
+      ++whole;
+      // A scan cut in the silence is one pass, fired at the rotor's pace.
+      const double duration_ms =
+          static_cast<double>((r.scans[i].scan.end - r.scans[i].scan.stamp).count()) * 1e-6;
+      if (duration_ms < 60.0) {
+        EXPECT_NEAR(duration_ms, 449 * 0.110592 + 0.055296, 0.01) << error << " scan " << i;
+      }
+    }
+    EXPECT_GE(whole, 4) << error;
+  }
 }
 
 TEST(ScanAssembler, LimitedFieldOfViewCanBeTakenAsLoss) {
