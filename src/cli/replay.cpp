@@ -413,9 +413,18 @@ int run_replay(const ReplayArgs& a) {
       mapper ? mapper->map().size() : 0, core::percentile(mo.map_cm, 0.5));
   summary.close();
   if (scans == 0) {
+    // Why the packets were refused, by reason (an unsupported model, say), and where to look.
+    const vlp16::DriverStats& d = report.driver;
+    std::string why;
+    for (std::size_t i = 1; i < d.rejected.size(); ++i) {
+      if (d.rejected[i] == 0) continue;
+      why += fmt::format("{}{} {}", why.empty() ? ": " : ", ", d.rejected[i],
+                         vlp16::packet_error_name(static_cast<vlp16::PacketError>(i)));
+    }
     return fail({core::kExitDataError,
-                 fmt::format("no scan in '{}' ({} data packets, {} rejected)", a.capture,
-                             report.driver.data_packets, report.driver.rejected_total())});
+                 fmt::format("no scan in '{}' ({} data packets, {} rejected{}; `cndt info` "
+                             "shows the capture in detail)",
+                             a.capture, d.data_packets, d.rejected_total(), why)});
   }
   spdlog::info("{} scans in {:.1f} s; odometry {:.1f} ms median, {:.1f} ms p99; results in '{}'",
                scans, wall, core::percentile(ms, 0.5), core::percentile(ms, 0.99), a.out_dir);

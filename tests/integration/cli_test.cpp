@@ -16,6 +16,7 @@
 #include "cndt/cli/cloud_io.hpp"
 #include "cndt/core/bytes.hpp"
 #include "cndt/slam/map_file.hpp"
+#include "shared_data.hpp"
 #include "temp_dir.hpp"
 
 namespace {
@@ -63,6 +64,16 @@ TEST(CliBadInput, CaptureWithoutSensorDataIsNotASilentSuccess) {
   EXPECT_NE(r.output.find("no scan"), std::string::npos) << r.output;
   r = run("info " + dir.file("s/capture.pcap") + " --data-port 2999");
   EXPECT_EQ(r.code, 65) << r.output;
+}
+
+// An HDL-64E capture: every packet is refused by model, and the error says so.
+TEST(CliBadInput, ReplayOfAnUnsupportedSensorSaysWhyThereIsNoScan) {
+  CNDT_REQUIRE_SHARED(path, "opendavinci-hdl64-wall/atwallshort.pcap");
+  cndt::test::TempDir dir;
+  const CliRun r = run("replay " + path + " --out " + dir.file("r"));
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_EQ(error_lines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("306 rejected: 306 unsupported_model"), std::string::npos) << r.output;
 }
 
 TEST(CliUsage, BadOptionsAreUsageErrors) {
