@@ -6,6 +6,16 @@
 
 namespace cndt::vlp16 {
 
+std::string DriverStats::rejects_text() const {
+  std::string out;
+  for (std::size_t i = 0; i < rejected.size(); ++i) {
+    if (rejected[i] == 0) continue;
+    out += fmt::format("{}{} {}", out.empty() ? "" : ", ", rejected[i],
+                       packet_error_name(static_cast<PacketError>(i)));
+  }
+  return out.empty() ? "none" : out;
+}
+
 Driver::Driver(const DriverOptions& options)
     : options_(options),
       assembler_(options.assembler, laser_table(options.model.value_or(Model::kVlp16))

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <utility>
 
 namespace cndt::vlp16 {
 namespace {
@@ -15,9 +16,12 @@ constexpr int kMinFovGap = 1000;
 // The slowest rotor (300 rpm) turns once in 0.2 s: a skip said to take longer is not a silence.
 constexpr std::int64_t kMaxSkipNs = 400'000'000;
 
+// How far the rotor turns from azimuth b to azimuth a (0.01 deg), in [0, 36000).
+int azimuth_ahead(int a, int b) { return (a - b + 36000) % 36000; }
+
 // Signed difference a - b of two azimuths (0.01 deg), in (-18000, 18000].
 int azimuth_diff(int a, int b) {
-  const int d = (a - b + 36000) % 36000;
+  const int d = azimuth_ahead(a, b);
   return d > 18000 ? d - 36000 : d;
 }
 }  // namespace
@@ -96,16 +100,15 @@ ScanAssembler::Continuity ScanAssembler::classify_silence(const DecodedPacket& p
   }
   // The silence runs from the last firing taken to this packet's first, in the turning direction.
   const int from = last_azimuth_;
-  const int length = (packet.firings[0].azimuth - from + 36000) % 36000;
-  const double packet_arc = azimuth_per_ns_ * period_ns_;
+  const int length = azimuth_ahead(packet.firings[0].azimuth, from);
   const int tol = azimuth_tolerance();
-  const double packets_per_turn = 36000.0 / packet_arc;
+  const double packets_per_turn = 36000.0 / packet_arc();
   // Longer than a turn, the azimuths no longer say which sector was silent.
   const bool within_turn = static_cast<double>(missing) < packets_per_turn - 1.0;
   FovGap& gap = stats_.fov_gap;
   if (gap.length > 0 && within_turn) {
     // How far before the gap's start the silence began (slightly negative: just after it).
-    int before = (gap.start - from + 36000) % 36000;
+    int before = azimuth_ahead(gap.start, from);
     if (before > 36000 - tol) before -= 36000;
     if (before >= -tol && before + gap.length <= length + tol) {
       // The whole gap was silent, as every turn; what the silence held beyond it was lost.
@@ -126,8 +129,7 @@ ScanAssembler::Continuity ScanAssembler::classify_silence(const DecodedPacket& p
 
 bool ScanAssembler::learn_fov_gap(int from, int length, std::chrono::nanoseconds end,
                                   std::uint32_t missing, std::chrono::nanoseconds duration) {
-  if (!options_.cut_at_fov_gap || azimuth_per_ns_ <= 0.0) return false;
-  const double packet_arc = azimuth_per_ns_ * period_ns_;
+  if (azimuth_per_ns_ <= 0.0) return false;
   const int tol = azimuth_tolerance();
   // The same sector, one turn after the silence before.
   const double turn_ns = 36000.0 / azimuth_per_ns_;
@@ -135,7 +137,7 @@ bool ScanAssembler::learn_fov_gap(int from, int length, std::chrono::nanoseconds
   const bool repeats = last_silence_.valid && std::abs(apart - turn_ns) < 0.2 * turn_ns &&
                        std::abs(azimuth_diff(from, last_silence_.from)) <= tol &&
                        std::abs(length - last_silence_.length) <= 2 * tol;
-  const bool wide = length >= kMinFovGap && static_cast<double>(length) >= 3.0 * packet_arc &&
+  const bool wide = length >= kMinFovGap && static_cast<double>(length) >= 3.0 * packet_arc() &&
                     static_cast<double>(duration.count()) < 0.95 * turn_ns;
   if (!wide) return false;  // too short to be a field of view: loss, and no candidate
   last_silence_ = {from, length, end, true};
@@ -146,14 +148,14 @@ bool ScanAssembler::learn_fov_gap(int from, int length, std::chrono::nanoseconds
   gap.packets = missing;
   gap.duration_ns = duration.count();
   // A configured cut already inside the gap (clear of its edges) stays; otherwise the middle.
-  const int configured = (options_.cut_azimuth - from + 36000) % 36000;
+  const int configured = azimuth_ahead(options_.cut_azimuth, from);
   const bool keep = configured > tol && configured < length - tol;
   pending_cut_ =
       keep ? options_.cut_azimuth : static_cast<std::uint16_t>((from + length / 2) % 36000);
   spdlog::info(
       "the sensor is silent from {:.1f} to {:.1f} deg every turn (a limited field of view): "
       "revolutions are cut at {:.1f} deg ({}) and this silence is not counted as packet loss",
-      from / 100.0, ((from + length) % 36000) / 100.0, pending_cut_ / 100.0,
+      from / 100.0, gap.end() / 100.0, pending_cut_ / 100.0,
       keep ? "the configured cut" : "the middle of the silence");
   return true;
 }
@@ -164,7 +166,7 @@ ScanAssembler::Skip ScanAssembler::find_skip(const DecodedPacket& packet) const 
   for (int i = 1; i < packet.firing_count; ++i) {
     const Firing& a = packet.firings[static_cast<std::size_t>(i - 1)];
     const Firing& b = packet.firings[static_cast<std::size_t>(i)];
-    const int step = (b.azimuth - a.azimuth + 36000) % 36000;
+    const int step = azimuth_ahead(b.azimuth, a.azimuth);
     if (step < kMinFovGap || step >= 36000 - kMinFovGap) continue;
     skip.at = i;
     skip.from = a.azimuth;
@@ -173,7 +175,7 @@ ScanAssembler::Skip ScanAssembler::find_skip(const DecodedPacket& packet) const 
     double rate = azimuth_per_ns_;
     const Firing& head = packet.firings[0];
     if (rate <= 0.0 && i >= 2 && a.offset_ns > head.offset_ns) {
-      rate = ((a.azimuth - head.azimuth + 36000) % 36000) /
+      rate = azimuth_ahead(a.azimuth, head.azimuth) /
              static_cast<double>(a.offset_ns - head.offset_ns);
     }
     if (rate > 0.0) {
@@ -186,23 +188,19 @@ ScanAssembler::Skip ScanAssembler::find_skip(const DecodedPacket& packet) const 
   return skip;
 }
 
-bool ScanAssembler::retime_after_skip(std::int64_t fix) noexcept {
-  const bool whole = shifted_stamp_;
-  const std::size_t from = shifted_from_;
-  shifted_stamp_ = false;
-  shifted_from_ = kNoShift;
+bool ScanAssembler::retime_after_skip(const ShiftedTail& tail, std::int64_t fix) noexcept {
   if (!scan_open_ || fix == 0) return true;
   auto& pts = scan_.points;
-  if (whole) {
+  if (tail.whole) {
     // The scan began after the skip: its stamp moves and its point offsets stay.
     scan_.stamp += std::chrono::nanoseconds(fix);
     scan_.end += std::chrono::nanoseconds(fix);
     return true;
   }
-  if (from >= pts.size()) return true;  // none of the open scan's points came after the skip
-  const std::int64_t before = from > 0 ? pts[from - 1].time_ns : 0;
-  if (static_cast<std::int64_t>(pts[from].time_ns) + fix < before) return false;
-  for (std::size_t i = from; i < pts.size(); ++i) {
+  if (tail.from >= pts.size()) return true;  // none of the open scan's points came after it
+  const std::int64_t before = tail.from > 0 ? pts[tail.from - 1].time_ns : 0;
+  if (static_cast<std::int64_t>(pts[tail.from].time_ns) + fix < before) return false;
+  for (std::size_t i = tail.from; i < pts.size(); ++i) {
     pts[i].time_ns = static_cast<std::uint32_t>(static_cast<std::int64_t>(pts[i].time_ns) + fix);
   }
   scan_.end += std::chrono::nanoseconds(fix);
@@ -210,17 +208,17 @@ bool ScanAssembler::retime_after_skip(std::int64_t fix) noexcept {
 }
 
 int ScanAssembler::azimuth_tolerance() const noexcept {
-  return static_cast<int>(std::ceil(1.5 * azimuth_per_ns_ * period_ns_));
+  return static_cast<int>(std::ceil(1.5 * packet_arc()));
 }
 
 ScanAssembler::Skip ScanAssembler::take_skip(const DecodedPacket& packet,
                                              std::chrono::nanoseconds packet_time) {
+  Skip none;
+  none.at = packet.firing_count;
+  if (!options_.cut_at_fov_gap) return none;
   Skip skip = find_skip(packet);
-  if (skip.at >= packet.firing_count || skip.extra_ns <= 0 || skip.extra_ns > kMaxSkipNs ||
-      !options_.cut_at_fov_gap) {
-    skip.at = packet.firing_count;
-    skip.extra_ns = 0;
-    return skip;
+  if (skip.at >= packet.firing_count || skip.extra_ns <= 0 || skip.extra_ns > kMaxSkipNs) {
+    return none;
   }
   const Firing& f = packet.firings[static_cast<std::size_t>(skip.at)];
   const std::chrono::nanoseconds end =
@@ -248,19 +246,14 @@ ScanAssembler::Skip ScanAssembler::take_skip(const DecodedPacket& packet,
 
 void ScanAssembler::check_skip_delay(const DecodedPacket& packet,
                                      std::chrono::nanoseconds packet_time) noexcept {
-  const std::int64_t shift = unconfirmed_shift_ns_;
-  unconfirmed_shift_ns_ = 0;
+  const std::int64_t shift = std::exchange(unconfirmed_shift_ns_, 0);
+  const ShiftedTail tail = std::exchange(shifted_, {});
   if (shift <= 0) return;
-  const auto forget_tail = [this] {
-    shifted_stamp_ = false;
-    shifted_from_ = kNoShift;
-  };
   // Packets lost between the skip's packet and this one, by the azimuth the rotor moved.
-  const double packet_arc = azimuth_per_ns_ * period_ns_;
   double lost = 0.0;
-  if (packet.firing_count > 0 && have_last_azimuth_ && packet_arc > 0.0) {
-    const int arc = (packet.firings[0].azimuth - last_azimuth_ + 36000) % 36000;
-    if (arc < 18000) lost = std::round(arc / packet_arc);
+  if (packet.firing_count > 0 && have_last_azimuth_ && packet_arc() > 0.0) {
+    const int arc = azimuth_ahead(packet.firings[0].azimuth, last_azimuth_);
+    if (arc < 18000) lost = std::round(arc / packet_arc());
   }
   // How much later than the skip said this packet came, beyond those lost packets.
   const double late =
@@ -272,16 +265,14 @@ void ScanAssembler::check_skip_delay(const DecodedPacket& packet,
     // the firings after the skip move with it (unless that would put them before the firings
     // ahead of the skip: then the clock does not agree with the skip after all).
     const std::int64_t fix = std::llround(late);
-    if (retime_after_skip(fix)) {
+    if (retime_after_skip(tail, fix)) {
       last_packet_time_ += std::chrono::nanoseconds(fix);
       last_point_time_ += std::chrono::nanoseconds(fix);
       return;
     }
   } else if (late > 0.0) {
-    forget_tail();
     return;  // later still: the silence check that follows counts it
   }
-  forget_tail();
   // On the packet's own timing: the jump was a bad azimuth, and the firings after it were given
   // times that they did not have.
   ++stats_.azimuth_jumps;
@@ -303,7 +294,7 @@ void ScanAssembler::note_azimuths(const DecodedPacket& packet, const Skip& skip)
   // Azimuths are whole 0.01 deg: a span of a few firings gives the speed only to a few percent,
   // so short spans are not used (but for the first estimate) and the estimate is smoothed.
   if (last.offset_ns > first.offset_ns && (tail - head >= 5 || azimuth_per_ns_ <= 0.0)) {
-    const int arc = (last.azimuth - first.azimuth + 36000) % 36000;
+    const int arc = azimuth_ahead(last.azimuth, first.azimuth);
     if (arc > 0 && arc < 18000) {
       const double sample = arc / static_cast<double>(last.offset_ns - first.offset_ns);
       azimuth_per_ns_ = azimuth_per_ns_ <= 0.0 ? sample : 0.9 * azimuth_per_ns_ + 0.1 * sample;
@@ -316,7 +307,7 @@ void ScanAssembler::note_azimuths(const DecodedPacket& packet, const Skip& skip)
 void ScanAssembler::attribute_loss(std::uint32_t lost, const DecodedPacket& packet) noexcept {
   std::uint32_t before_cut = lost;
   if (scan_open_ && packet.firing_count > 0) {
-    const int rel = (packet.firings[0].azimuth - stats_.cut_azimuth + 36000) % 36000;
+    const int rel = azimuth_ahead(packet.firings[0].azimuth, stats_.cut_azimuth);
     if (rel < last_rel_) {
       // The missing packets spanned the cut: spread them evenly over the azimuth they covered.
       const double span = rel + 36000 - last_rel_;

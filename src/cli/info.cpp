@@ -116,8 +116,7 @@ std::string format_info_text(const CaptureReport& r) {
     o += fmt::format(
         "field of view  silent from {:.1f} to {:.1f} deg every turn ({} silences, not counted as "
         "loss); cut at {:.1f} deg\n",
-        a.fov_gap.start / 100.0, ((a.fov_gap.start + a.fov_gap.length) % 36000) / 100.0,
-        a.fov_silences, a.cut_azimuth / 100.0);
+        a.fov_gap.start / 100.0, a.fov_gap.end() / 100.0, a.fov_silences, a.cut_azimuth / 100.0);
   } else {
     o += fmt::format("field of view  full turn; cut at {:.1f} deg\n", a.cut_azimuth / 100.0);
   }
@@ -194,10 +193,8 @@ std::string format_info_json(const CaptureReport& r) {
   kv("time_jumps", std::to_string(a.time_jumps));
   kv("stale_packets", std::to_string(a.stale_packets));
   if (a.fov_gap.length > 0) {
-    kv("fov_gap",
-       fmt::format("{{\"from_deg\": {:.2f}, \"to_deg\": {:.2f}, \"silences\": {}}}",
-                   a.fov_gap.start / 100.0, ((a.fov_gap.start + a.fov_gap.length) % 36000) / 100.0,
-                   a.fov_silences));
+    kv("fov_gap", fmt::format("{{\"from_deg\": {:.2f}, \"to_deg\": {:.2f}, \"silences\": {}}}",
+                              a.fov_gap.start / 100.0, a.fov_gap.end() / 100.0, a.fov_silences));
   } else {
     kv("fov_gap", "null");
   }

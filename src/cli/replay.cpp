@@ -415,12 +415,7 @@ int run_replay(const ReplayArgs& a) {
   if (scans == 0) {
     // Why the packets were refused, by reason (an unsupported model, say), and where to look.
     const vlp16::DriverStats& d = report.driver;
-    std::string why;
-    for (std::size_t i = 1; i < d.rejected.size(); ++i) {
-      if (d.rejected[i] == 0) continue;
-      why += fmt::format("{}{} {}", why.empty() ? ": " : ", ", d.rejected[i],
-                         vlp16::packet_error_name(static_cast<vlp16::PacketError>(i)));
-    }
+    const std::string why = d.rejected_total() > 0 ? ": " + d.rejects_text() : "";
     return fail({core::kExitDataError,
                  fmt::format("no scan in '{}' ({} data packets, {} rejected{}; `cndt info` "
                              "shows the capture in detail)",

@@ -30,16 +30,6 @@ struct InputCounters {
   std::uint64_t udp_queue_full = 0;
 };
 
-std::string rejects_text(const vlp16::DriverStats& d) {
-  std::string out;
-  for (std::size_t i = 0; i < d.rejected.size(); ++i) {
-    if (d.rejected[i] == 0) continue;
-    out += fmt::format("{}{} {}", out.empty() ? "" : ", ", d.rejected[i],
-                       vlp16::packet_error_name(static_cast<vlp16::PacketError>(i)));
-  }
-  return out.empty() ? "none" : out;
-}
-
 }  // namespace
 
 int run_daemon(const config::Config& c) {
@@ -195,7 +185,7 @@ int run_daemon(const config::Config& c) {
         "poses {} valid, {} degraded, {} lost; keyframes {}; heap allocations in odometry "
         "{}{}{}",
         ps.scans_done, ps.scans_done - last_scans, ps.scans_dropped, snap.driver.decoded_packets,
-        rejects_text(snap.driver), snap.lost_packets, snap.udp_queue_full, window, valid, degraded,
+        snap.driver.rejects_text(), snap.lost_packets, snap.udp_queue_full, window, valid, degraded,
         lost, ps.keyframes,
         ps.allocations_counted ? fmt::format("{}, page faults {}", ps.heap_allocations_in_odometry,
                                              ps.page_faults_in_odometry)

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include "cndt/core/bytes.hpp"
 #include "cndt/vlp16/decoder.hpp"
@@ -53,6 +54,8 @@ struct DriverStats {
     for (auto v : rejected) n += v;
     return n;
   }
+  /// The rejects by reason, "12 bad_flag, 3 unsupported_model"; "none" without any.
+  [[nodiscard]] std::string rejects_text() const;
 };
 
 class Driver {

@@ -27,6 +27,10 @@ struct FovGap {
   std::uint16_t length = 0;      ///< azimuth the silence spans, 0.01 deg; 0 = none found
   std::uint32_t packets = 0;     ///< packets the sensor would have sent over it
   std::int64_t duration_ns = 0;  ///< time from the last firing before to the first after
+  /// Azimuth where the silence ends, 0.01 deg.
+  [[nodiscard]] std::uint16_t end() const noexcept {
+    return static_cast<std::uint16_t>((start + length) % 36000);
+  }
 };
 
 struct AssemblerStats {
@@ -94,9 +98,12 @@ class ScanAssembler {
   // clock), or on the packet's own timing (the skip was a bad azimuth, not a silence: the
   // stream's time goes back and skip_refuted_ asks add() to end the scan in progress).
   void check_skip_delay(const DecodedPacket& packet, std::chrono::nanoseconds packet_time) noexcept;
-  // Moves the open scan's firings after the last skip by `fix` ns (the skip's delay as the next
-  // packet's clock gives it); false when that would put them before the firings ahead of it.
-  bool retime_after_skip(std::int64_t fix) noexcept;
+  // Moves the open scan's firings after the last skip (`tail`) by `fix` ns (the skip's delay as
+  // the next packet's clock gives it); false when that would put them before the firings ahead.
+  struct ShiftedTail;
+  bool retime_after_skip(const ShiftedTail& tail, std::int64_t fix) noexcept;
+  // Azimuth the rotor turns in one packet period, 0.01 deg (0 before the speed is known).
+  [[nodiscard]] double packet_arc() const noexcept { return azimuth_per_ns_ * period_ns_; }
   // How far (0.01 deg) two azimuths of the same sector may differ: 1.5 packets of rotation.
   [[nodiscard]] int azimuth_tolerance() const noexcept;
   // Notes the rotor's speed and the last azimuth of a packet that was taken.
@@ -137,10 +144,11 @@ class ScanAssembler {
   std::int64_t unconfirmed_shift_ns_ = 0;  // a skip's delay, until the next packet shows it
   bool skip_refuted_ = false;  // the scan in progress holds firings given a delay they did not have
   // Where the open scan's firings after the last skip begin, for retime_after_skip: its points
-  // from shifted_from_ on, or the whole scan (shifted_stamp_) when it began after the skip.
-  static constexpr std::size_t kNoShift = static_cast<std::size_t>(-1);
-  std::size_t shifted_from_ = kNoShift;
-  bool shifted_stamp_ = false;
+  // from `from` on, or the whole scan (`whole`) when it began after the skip.
+  struct ShiftedTail {
+    std::size_t from = static_cast<std::size_t>(-1);
+    bool whole = false;
+  } shifted_;
   AssemblerStats stats_;
 };
 
@@ -237,10 +245,8 @@ void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds pa
   }
   const std::size_t tail_from = scan_.points.size();
   append(packet, run, packet.firing_count, packet_time, run >= skip.at ? skip.extra_ns : 0);
-  if (skip.at < packet.firing_count) {
-    shifted_stamp_ = started_after_skip;
-    shifted_from_ = started_after_skip ? 0 : tail_from;
-  }
+  if (skip.at < packet.firing_count)
+    shifted_ = {started_after_skip ? 0 : tail_from, started_after_skip};
   note_azimuths(packet, skip);
 }
 
