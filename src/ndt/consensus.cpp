@@ -1,7 +1,10 @@
 #include "cndt/ndt/consensus.hpp"
 
+#include <algorithm>
+#include <array>
 #include <boost/math/distributions/chi_squared.hpp>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 
 #include "cndt/ndt/ndt_score.hpp"
@@ -33,9 +36,27 @@ double voxel_consensus(double rss, std::uint32_t n, const ChiSquareTable& table,
 void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                           const core::Pose6& x, VoxelResiduals& out) {
   const PoseDerivatives pd(x);
-  for (const Eigen::Vector3d& p : points) {
-    const Eigen::Vector3d v = pd.transform(p);
-    const std::int64_t idx = grid.index_of(grid.key_of(v));
+  // Each point is placed and its voxel found kAhead points before its residual is taken, and
+  // the voxel fetched into the cache meanwhile (see ndt_score).
+  constexpr std::size_t kAhead = 8, kRing = kAhead + 1;
+  std::array<Eigen::Vector3d, kRing> placed;
+  std::array<std::int32_t, kRing> found{};
+  const Voxel* const voxels = grid.voxels().data();
+  auto look_ahead = [&](std::size_t j) {
+    const Eigen::Vector3d v = pd.transform(points[j]);
+    placed[j % kRing] = v;
+    std::int32_t& idx = found[j % kRing];
+    grid.indices_around(grid.key_of(v), 1, &idx);
+    if (idx < 0) return;
+    const auto* bytes = reinterpret_cast<const char*>(voxels + idx);
+    __builtin_prefetch(bytes + offsetof(Voxel, has_gaussian));
+    __builtin_prefetch(bytes + offsetof(Voxel, inv_cov) + sizeof(Eigen::Matrix3d) - 1);
+  };
+  for (std::size_t j = 0; j < std::min(kAhead, points.size()); ++j) look_ahead(j);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d v = placed[i % kRing];
+    const std::int32_t idx = found[i % kRing];
+    if (i + kAhead < points.size()) look_ahead(i + kAhead);
     if (idx < 0) continue;
     const Voxel& vox = grid.voxels()[static_cast<std::size_t>(idx)];
     if (!vox.has_gaussian) continue;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 
 #include "cndt/core/resident.hpp"
@@ -58,8 +59,6 @@ void PoseDerivatives::second(const Eigen::Vector3d& p, std::array<Eigen::Vector3
 }
 
 namespace {
-constexpr int kOffsets[7][3] = {{0, 0, 0},  {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
-                                {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
 constexpr std::int32_t kUnset = std::numeric_limits<std::int32_t>::min();
 }  // namespace
 
@@ -100,9 +99,10 @@ double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours n
   double score = 0.0;
   if (b != nullptr) b->setZero();
   if (M != nullptr) M->setZero();
+  std::array<std::int32_t, 7> found{};
+  grid.indices_around(key, static_cast<int>(neighbours), found.data());
   for (int n = 0; n < static_cast<int>(neighbours); ++n) {
-    const std::int64_t idx =
-        grid.index_of({key.x + kOffsets[n][0], key.y + kOffsets[n][1], key.z + kOffsets[n][2]});
+    const std::int32_t idx = found[static_cast<std::size_t>(n)];
     if (idx < 0) continue;
     const Voxel* vox = enabled_gaussian(grid, idx, mask);
     if (vox == nullptr) continue;
@@ -141,19 +141,45 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   Eigen::Matrix3d h_tt = Eigen::Matrix3d::Zero(), h_tr = Eigen::Matrix3d::Zero(),
                   h_rr = Eigen::Matrix3d::Zero();
   constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
-  std::array<std::int32_t, 7> local{};
+  // The scoring reads voxels in random order from a grid far larger than the caches, so each
+  // point goes through a short pipeline: kPlace points ahead it is placed and the table slots
+  // of the voxels around it are fetched (when its voxel changed); kFind points ahead they are
+  // looked up and the voxels fetched; then it is scored.
+  constexpr std::size_t kPlace = 16, kFind = 8, kRing = kPlace + 1;  // i's entry outlives i + 16
+  std::array<Eigen::Vector3d, kRing> placed;
+  std::array<VoxelKey, kRing> keys;
+  std::array<std::array<std::int32_t, 7>, kRing> local{};
+  const Voxel* const voxels = grid.voxels().data();
+  auto place = [&](std::size_t j) {
+    const Eigen::Vector3d v = pd.transform(points[j]);
+    const VoxelKey key = grid.key_of(v);
+    placed[j % kRing] = v;
+    keys[j % kRing] = key;
+    if (!cached || !(cache->keys_[j] == key)) grid.prefetch_around(key, lookups);
+  };
+  auto find = [&](std::size_t j) {
+    const VoxelKey& key = keys[j % kRing];
+    std::int32_t* found = cached ? &cache->indices_[j * 7] : local[j % kRing].data();
+    if (!cached || !(cache->keys_[j] == key)) {  // not the voxel this point was in last time
+      if (cached) cache->keys_[j] = key;
+      grid.indices_around(key, lookups, found);
+    }
+    for (int n = 0; n < lookups; ++n) {
+      if (found[n] < 0) continue;
+      // The fields scoring reads: has_gaussian to the end of inv_cov.
+      const auto* bytes = reinterpret_cast<const char*>(voxels + found[n]);
+      __builtin_prefetch(bytes + offsetof(Voxel, has_gaussian));
+      __builtin_prefetch(bytes + offsetof(Voxel, inv_cov) + sizeof(Eigen::Matrix3d) - 1);
+    }
+  };
+  for (std::size_t j = 0; j < std::min(kPlace, points.size()); ++j) place(j);
+  for (std::size_t j = 0; j < std::min(kFind, points.size()); ++j) find(j);
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3d& p = points[i];
-    const Eigen::Vector3d v = pd.transform(p);
-    const VoxelKey key = grid.key_of(v);
-    std::int32_t* found = cached ? &cache->indices_[i * 7] : local.data();
-    if (!cached || !(cache->keys_[i] == key)) {  // not the voxel this point was in last time
-      if (cached) cache->keys_[i] = key;
-      for (int n = 0; n < lookups; ++n) {
-        const VoxelKey k{key.x + kOffsets[n][0], key.y + kOffsets[n][1], key.z + kOffsets[n][2]};
-        found[n] = static_cast<std::int32_t>(grid.index_of(k));
-      }
-    }
+    const Eigen::Vector3d v = placed[i % kRing];
+    const std::int32_t* found = cached ? &cache->indices_[i * 7] : local[i % kRing].data();
+    if (i + kPlace < points.size()) place(i + kPlace);
+    if (i + kFind < points.size()) find(i + kFind);
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
     Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
     bool any = false;

@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <cmath>
@@ -31,29 +32,84 @@ VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
     voxels_.reserve(options.capacity);
     dirty_.reserve(options.capacity);
   }
-  // Load factor at most one half.
+  // Load factor at most one half, also when full.
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(16, options.capacity * 2));
-  table_.assign(slots, -1);
-  mask_ = slots - 1;
+  table_.assign(slots, Slot{});
+  mask_ = 15;
 }
 
 Eigen::Vector3d VoxelGrid::corner(const VoxelKey& k) const noexcept {
   return Eigen::Vector3d(k.x, k.y, k.z) * options_.voxel_size;
 }
 
-std::size_t VoxelGrid::slot_of(const VoxelKey& k) const noexcept {
-  std::size_t s = hash(k) & mask_;
-  while (table_[s] >= 0 && !(voxels_[static_cast<std::size_t>(table_[s])].key == k)) {
+std::size_t VoxelGrid::slot_of(const VoxelKey& k, std::uint64_t h) const noexcept {
+  const auto tag = static_cast<std::uint32_t>(h >> 32);
+  std::size_t s = h & mask_;
+  for (;;) {
+    const Slot& slot = table_[s];
+    if (slot.index < 0) return s;
+    if (slot.tag == tag && voxels_[static_cast<std::size_t>(slot.index)].key == k) return s;
     s = (s + 1) & mask_;
   }
-  return s;
 }
 
-std::int64_t VoxelGrid::index_of(const VoxelKey& k) const noexcept { return table_[slot_of(k)]; }
+std::size_t VoxelGrid::slot_of(const VoxelKey& k) const noexcept { return slot_of(k, hash(k)); }
+
+std::int64_t VoxelGrid::index_of(const VoxelKey& k) const noexcept {
+  return table_[slot_of(k)].index;
+}
+
+void VoxelGrid::indices_around(const VoxelKey& key, int n, std::int32_t* out) const noexcept {
+  std::array<VoxelKey, 7> keys;
+  std::array<std::uint64_t, 7> h;
+  for (int i = 0; i < n; ++i) {
+    const auto u = static_cast<std::size_t>(i);
+    keys[u] = {key.x + kFaceOffsets[i][0], key.y + kFaceOffsets[i][1], key.z + kFaceOffsets[i][2]};
+    h[u] = hash(keys[u]);
+    __builtin_prefetch(&table_[h[u] & mask_]);
+  }
+  for (int i = 0; i < n; ++i) {
+    const auto u = static_cast<std::size_t>(i);
+    out[i] = table_[slot_of(keys[u], h[u])].index;
+  }
+}
+
+void VoxelGrid::prefetch_slot(const Eigen::Vector3d& p) const noexcept {
+  __builtin_prefetch(&table_[hash(key_of(p)) & mask_]);
+}
+
+void VoxelGrid::prefetch_voxel(const Eigen::Vector3d& p) const noexcept {
+  const std::int32_t i = table_[slot_of(key_of(p))].index;
+  if (i >= 0) __builtin_prefetch(&voxels_[static_cast<std::size_t>(i)].sum);
+}
+
+void VoxelGrid::prefetch_around(const VoxelKey& key, int n) const noexcept {
+  for (int i = 0; i < n; ++i) {
+    const VoxelKey k{key.x + kFaceOffsets[i][0], key.y + kFaceOffsets[i][1],
+                     key.z + kFaceOffsets[i][2]};
+    __builtin_prefetch(&table_[hash(k) & mask_]);
+  }
+}
 
 const Voxel* VoxelGrid::find(const VoxelKey& k) const noexcept {
-  const std::int32_t i = table_[slot_of(k)];
+  const std::int32_t i = table_[slot_of(k)].index;
   return i >= 0 ? &voxels_[static_cast<std::size_t>(i)] : nullptr;
+}
+
+void VoxelGrid::insert_slot(const VoxelKey& k, std::int32_t index) noexcept {
+  const std::uint64_t h = hash(k);
+  std::size_t s = h & mask_;
+  while (table_[s].index >= 0) s = (s + 1) & mask_;
+  table_[s] = {static_cast<std::uint32_t>(h >> 32), index};
+}
+
+void VoxelGrid::grow_table_for(std::size_t voxels) noexcept {
+  if (voxels * 2 <= mask_ + 1 || mask_ + 1 == table_.size()) return;
+  std::fill_n(table_.begin(), mask_ + 1, Slot{});
+  mask_ = std::min(table_.size(), (mask_ + 1) * 2) - 1;
+  for (std::size_t i = 0; i < voxels_.size(); ++i) {
+    insert_slot(voxels_[i].key, static_cast<std::int32_t>(i));
+  }
 }
 
 void VoxelGrid::mark_dirty(Voxel& v, std::size_t index) noexcept {
@@ -74,9 +130,11 @@ bool VoxelGrid::add(const Eigen::Vector3d& p, double consensus) noexcept {
 
 bool VoxelGrid::restore(const VoxelKey& k, std::uint32_t count, const Eigen::Vector3d& sum,
                         const Eigen::Matrix3d& sum_outer, float consensus) noexcept {
-  const std::size_t s = slot_of(k);
-  if (count == 0 || table_[s] >= 0 || voxels_.size() == options_.capacity) return false;
-  table_[s] = static_cast<std::int32_t>(voxels_.size());
+  if (count == 0 || table_[slot_of(k)].index >= 0 || voxels_.size() == options_.capacity) {
+    return false;
+  }
+  grow_table_for(voxels_.size() + 1);
+  insert_slot(k, static_cast<std::int32_t>(voxels_.size()));
   voxels_.emplace_back();
   Voxel& v = voxels_.back();
   v.key = k;
@@ -91,20 +149,22 @@ bool VoxelGrid::restore(const VoxelKey& k, std::uint32_t count, const Eigen::Vec
 
 Voxel* VoxelGrid::add_point(const Eigen::Vector3d& p) noexcept {
   const VoxelKey k = key_of(p);
-  const std::size_t s = slot_of(k);
-  if (table_[s] < 0) {
+  std::int32_t found = table_[slot_of(k)].index;
+  if (found < 0) {
     if (voxels_.size() == options_.capacity) {
       ++refused_;
       return nullptr;
     }
-    table_[s] = static_cast<std::int32_t>(voxels_.size());
+    grow_table_for(voxels_.size() + 1);
+    found = static_cast<std::int32_t>(voxels_.size());
+    insert_slot(k, found);
     voxels_.emplace_back();
     voxels_.back().key = k;
     ++version_;  // a lookup that found nothing here would now find this voxel
-  } else if (voxels_[static_cast<std::size_t>(table_[s])].count == 0) {
+  } else if (voxels_[static_cast<std::size_t>(found)].count == 0) {
     --empty_;  // a voxel emptied by remove() fills again
   }
-  const auto index = static_cast<std::size_t>(table_[s]);
+  const auto index = static_cast<std::size_t>(found);
   Voxel& v = voxels_[index];
   const Eigen::Vector3d q = p - corner(k);
   ++v.count;                                   // eq 3
@@ -116,7 +176,7 @@ Voxel* VoxelGrid::add_point(const Eigen::Vector3d& p) noexcept {
 
 bool VoxelGrid::remove(const Eigen::Vector3d& p) noexcept {
   const VoxelKey k = key_of(p);
-  const std::int32_t i = table_[slot_of(k)];
+  const std::int32_t i = table_[slot_of(k)].index;
   if (i < 0 || voxels_[static_cast<std::size_t>(i)].count == 0) return false;
   Voxel& v = voxels_[static_cast<std::size_t>(i)];
   if (--v.count == 0) {
@@ -171,10 +231,11 @@ void VoxelGrid::compact() noexcept {
 
 void VoxelGrid::rebuild_table() noexcept {
   ++version_;
-  std::fill(table_.begin(), table_.end(), -1);
+  std::fill_n(table_.begin(), mask_ + 1, Slot{});
+  mask_ = std::min(table_.size(), std::bit_ceil(std::max<std::size_t>(16, voxels_.size() * 2))) - 1;
   empty_ = 0;
   for (std::size_t i = 0; i < voxels_.size(); ++i) {
-    table_[slot_of(voxels_[i].key)] = static_cast<std::int32_t>(i);
+    insert_slot(voxels_[i].key, static_cast<std::int32_t>(i));
     if (voxels_[i].count == 0) ++empty_;
   }
 }
@@ -182,7 +243,8 @@ void VoxelGrid::rebuild_table() noexcept {
 void VoxelGrid::clear() noexcept {
   voxels_.clear();
   dirty_.clear();
-  std::fill(table_.begin(), table_.end(), -1);
+  std::fill_n(table_.begin(), mask_ + 1, Slot{});
+  mask_ = 15;
   refused_ = 0;
   empty_ = 0;
   ++version_;

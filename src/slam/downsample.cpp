@@ -1,5 +1,6 @@
 #include "cndt/slam/downsample.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 
@@ -50,6 +51,12 @@ void Downsampler::bin(const Eigen::Vector3d& p, double t) {
   ++c.count;
 }
 
+void Downsampler::size_table(std::size_t points) {
+  // Load at most one half for this run's points; a small run keeps a small table in the caches.
+  const std::size_t cells = std::min(points, capacity_);
+  mask_ = std::min(table_.size(), std::bit_ceil(std::max<std::size_t>(16, cells * 2))) - 1;
+}
+
 void Downsampler::reset() {
   for (std::size_t s : used_slots_) table_[s] = -1;
   used_slots_.clear();
@@ -58,6 +65,7 @@ void Downsampler::reset() {
 
 void Downsampler::run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Vector3d>& out) {
   dropped_ = 0;
+  size_table(in.size());
   for (const Eigen::Vector3d& p : in) bin(p, 0.0);
   out.clear();
   for (const Cell& c : cells_) out.push_back(c.sum / c.count);
@@ -66,6 +74,7 @@ void Downsampler::run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Ve
 
 void Downsampler::run(std::span<const TimedPoint> in, std::vector<TimedPoint>& out) {
   dropped_ = 0;
+  size_table(in.size());
   for (const TimedPoint& p : in) bin(p.p, p.t);
   out.clear();
   for (const Cell& c : cells_) out.push_back({c.sum / c.count, c.time_sum / c.count});

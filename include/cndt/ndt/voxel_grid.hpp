@@ -94,6 +94,20 @@ class VoxelGrid {
   [[nodiscard]] const Voxel* find(const VoxelKey& k) const noexcept;
   /// Index of the voxel in voxels(), or -1.
   [[nodiscard]] std::int64_t index_of(const VoxelKey& k) const noexcept;
+  /// index_of() for the first `n` (at most 7) of `key` and its six face neighbours in the order
+  /// of kFaceOffsets, into out[0..n). The table slots are fetched together, not one after the
+  /// other.
+  void indices_around(const VoxelKey& key, int n, std::int32_t* out) const noexcept;
+  /// Fetches the table slots indices_around(key, n, ...) will read into the cache.
+  void prefetch_around(const VoxelKey& key, int n) const noexcept;
+  /// Hints for adding or removing many points: prefetch_slot(p) fetches the table slot where
+  /// p's voxel is looked up; prefetch_voxel(p), issued later, looks it up and fetches the voxel.
+  /// Neither changes anything, so a point between the hint and its use may still be added.
+  void prefetch_slot(const Eigen::Vector3d& p) const noexcept;
+  void prefetch_voxel(const Eigen::Vector3d& p) const noexcept;
+  /// A voxel and its six face neighbours: (0,0,0), then +-x, +-y, +-z.
+  static constexpr std::int32_t kFaceOffsets[7][3] = {{0, 0, 0},  {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                                                      {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
 
   /// Occupied voxels, in insertion order.
   [[nodiscard]] const std::vector<Voxel>& voxels() const noexcept { return voxels_; }
@@ -105,7 +119,16 @@ class VoxelGrid {
   [[nodiscard]] std::uint64_t version() const noexcept { return version_; }
 
  private:
+  // One hash table slot: the voxel's index (-1: empty) and the high half of its key's hash,
+  // so that a probe passing other keys' slots reads no voxel.
+  struct Slot {
+    std::uint32_t tag = 0;
+    std::int32_t index = -1;
+  };
   [[nodiscard]] std::size_t slot_of(const VoxelKey& k) const noexcept;
+  [[nodiscard]] std::size_t slot_of(const VoxelKey& k, std::uint64_t h) const noexcept;
+  void insert_slot(const VoxelKey& k, std::int32_t index) noexcept;  // k not in the table
+  void grow_table_for(std::size_t voxels) noexcept;     // rehashes when the table gets too full
   Voxel* add_point(const Eigen::Vector3d& p) noexcept;  // nullptr when full
   void rebuild_table() noexcept;
   [[nodiscard]] Eigen::Vector3d corner(const VoxelKey& k) const noexcept;
@@ -114,10 +137,13 @@ class VoxelGrid {
 
   VoxelGridOptions options_;
   double inv_size_;
-  std::vector<Voxel> voxels_;         // capacity reserved once
-  std::vector<std::int32_t> table_;   // open addressing: index into voxels_, -1 empty
+  std::vector<Voxel> voxels_;  // capacity reserved once
+  // Open addressing with linear probing. All slots for the capacity are allocated once; only
+  // the first mask_ + 1 are in use, sized to keep the load at most one half for the voxels
+  // held, so that a grid far below its capacity keeps a small table in the caches.
+  std::vector<Slot> table_;
   std::vector<std::uint32_t> dirty_;  // voxels changed since the last finalize()
-  std::size_t mask_;
+  std::size_t mask_ = 15;
   std::size_t empty_ = 0;
   std::uint64_t refused_ = 0;
   std::uint64_t version_ = 0;

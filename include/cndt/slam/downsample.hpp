@@ -37,11 +37,12 @@ class Downsampler {
     std::uint32_t count;
   };
   void bin(const Eigen::Vector3d& p, double t);
+  void size_table(std::size_t points);
   void reset();
   double inv_cell_;
   std::size_t capacity_;
   std::vector<Cell> cells_;
-  std::vector<std::int32_t> table_;
+  std::vector<std::int32_t> table_;  // slots for the capacity; the first mask_ + 1 in use
   std::vector<std::size_t> used_slots_;
   std::size_t mask_;
   std::size_t dropped_ = 0;

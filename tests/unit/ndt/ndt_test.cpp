@@ -1,8 +1,12 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <array>
+#include <bit>
 #include <cmath>
+#include <map>
 #include <random>
+#include <tuple>
 
 #include "cndt/ndt/consensus.hpp"
 #include "cndt/ndt/ndt_score.hpp"
@@ -102,6 +106,73 @@ TEST(VoxelGrid, RemovingPointsLeavesTheGridOfTheRest) {
   EXPECT_EQ(sliding.empty_voxels(), 0u);
   EXPECT_NE(sliding.version(), before);  // indices changed: cached lookups are void
   compare();
+}
+
+// The lookup table grows with the voxels it holds (from 16 slots up to twice the capacity) and
+// shrinks when compacted or cleared: through every size, each voxel is found at its index, a key
+// never added is not found, and the neighbour lookup agrees with single lookups.
+TEST(VoxelGrid, LookupsHoldWhileTheTableGrowsAndShrinks) {
+  constexpr std::size_t kCapacity = 5000;
+  VoxelGrid g({0.5, kCapacity, 5, 0.001});
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> coord(-60, 60);
+  std::map<std::tuple<int, int, int>, std::int64_t> expected;  // key -> index
+  std::vector<Eigen::Vector3d> added;
+  auto check = [&](const char* when) {
+    SCOPED_TRACE(when);
+    ASSERT_EQ(g.size(), expected.size());
+    for (const auto& [k, index] : expected) {
+      const VoxelKey key{std::get<0>(k), std::get<1>(k), std::get<2>(k)};
+      ASSERT_EQ(g.index_of(key), index);
+      std::array<std::int32_t, 7> around{};
+      g.indices_around(key, 7, around.data());
+      for (int n = 0; n < 7; ++n) {
+        const VoxelKey nk{key.x + VoxelGrid::kFaceOffsets[n][0],
+                          key.y + VoxelGrid::kFaceOffsets[n][1],
+                          key.z + VoxelGrid::kFaceOffsets[n][2]};
+        ASSERT_EQ(around[static_cast<std::size_t>(n)], g.index_of(nk));
+      }
+    }
+    for (int i = 0; i < 2000; ++i) {
+      const VoxelKey key{coord(rng) + 1000, coord(rng), coord(rng)};  // never added
+      ASSERT_EQ(g.index_of(key), -1);
+      ASSERT_EQ(g.find(key), nullptr);
+    }
+  };
+  // Grows one voxel at a time through every table size up to the capacity.
+  while (expected.size() < kCapacity) {
+    const Eigen::Vector3d p(0.5 * coord(rng) + 0.25, 0.5 * coord(rng) + 0.25,
+                            0.5 * coord(rng) + 0.25);
+    const VoxelKey key = g.key_of(p);
+    const auto k = std::make_tuple(key.x, key.y, key.z);
+    const bool is_new = !expected.contains(k);
+    ASSERT_TRUE(g.add(p));
+    added.push_back(p);
+    if (is_new) expected[k] = static_cast<std::int64_t>(expected.size());
+    if (std::has_single_bit(expected.size())) check("growing");
+  }
+  check("full");
+  EXPECT_FALSE(g.add(Eigen::Vector3d(1000.25, 0.25, 0.25)));  // a new voxel past the capacity
+  // Emptied voxels leave with compact(); the rest are renumbered in order.
+  for (std::size_t i = 0; i < added.size(); i += 3) {
+    while (g.remove(added[i])) {
+    }
+  }
+  g.compact();
+  std::map<std::tuple<int, int, int>, std::int64_t> kept;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const VoxelKey& key = g.voxels()[i].key;
+    kept[std::make_tuple(key.x, key.y, key.z)] = static_cast<std::int64_t>(i);
+  }
+  ASSERT_LT(kept.size(), expected.size());
+  expected = kept;
+  check("compacted");
+  g.clear();
+  expected.clear();
+  check("cleared");
+  ASSERT_TRUE(g.add(Eigen::Vector3d(0.25, 0.25, 0.25)));
+  expected[std::make_tuple(0, 0, 0)] = 0;
+  check("refilled");
 }
 
 // Clusters at the centres of 4 m voxels, so that small pose changes never move a point into
