@@ -25,14 +25,25 @@ Downsampler::Downsampler(double cell, std::size_t capacity)
   mask_ = slots - 1;
 }
 
-void Downsampler::bin(const Eigen::Vector3d& p, double t) {
+std::int64_t Downsampler::key_of(const Eigen::Vector3d& p) const {
   const std::int64_t x = core::cell_index(p.x() * inv_cell_);
   const std::int64_t y = core::cell_index(p.y() * inv_cell_);
   const std::int64_t z = core::cell_index(p.z() * inv_cell_);
-  const std::int64_t key = ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
-  std::size_t s =
-      static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> 20) &
-      mask_;
+  return ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
+}
+
+std::size_t Downsampler::home_slot(std::int64_t key) const {
+  return static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> 20) &
+         mask_;
+}
+
+void Downsampler::prefetch(const Eigen::Vector3d& p) const {
+  __builtin_prefetch(&table_[home_slot(key_of(p))]);
+}
+
+void Downsampler::bin(const Eigen::Vector3d& p, double t) {
+  const std::int64_t key = key_of(p);
+  std::size_t s = home_slot(key);
   while (table_[s] >= 0 && cells_[static_cast<std::size_t>(table_[s])].key != key) {
     s = (s + 1) & mask_;
   }
@@ -66,7 +77,10 @@ void Downsampler::reset() {
 void Downsampler::run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Vector3d>& out) {
   dropped_ = 0;
   size_table(in.size());
-  for (const Eigen::Vector3d& p : in) bin(p, 0.0);
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (i + kAhead < in.size()) prefetch(in[i + kAhead]);
+    bin(in[i], 0.0);
+  }
   out.clear();
   for (const Cell& c : cells_) out.push_back(c.sum / c.count);
   reset();
@@ -75,7 +89,10 @@ void Downsampler::run(std::span<const Eigen::Vector3d> in, std::vector<Eigen::Ve
 void Downsampler::run(std::span<const TimedPoint> in, std::vector<TimedPoint>& out) {
   dropped_ = 0;
   size_table(in.size());
-  for (const TimedPoint& p : in) bin(p.p, p.t);
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (i + kAhead < in.size()) prefetch(in[i + kAhead].p);
+    bin(in[i].p, in[i].t);
+  }
   out.clear();
   for (const Cell& c : cells_) out.push_back({c.sum / c.count, c.time_sum / c.count});
   reset();

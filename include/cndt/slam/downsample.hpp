@@ -36,6 +36,11 @@ class Downsampler {
     double time_sum;
     std::uint32_t count;
   };
+  // Points are binned in order; the table slot of the point kAhead later is fetched meanwhile.
+  static constexpr std::size_t kAhead = 16;
+  [[nodiscard]] std::int64_t key_of(const Eigen::Vector3d& p) const;
+  [[nodiscard]] std::size_t home_slot(std::int64_t key) const;
+  void prefetch(const Eigen::Vector3d& p) const;
   void bin(const Eigen::Vector3d& p, double t);
   void size_table(std::size_t points);
   void reset();
