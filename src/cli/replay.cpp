@@ -88,6 +88,7 @@ core::Result<config::Config> replay_config(const ReplayArgs& a) {
   if (given(a, "--max-points")) c.sensor.max_points = static_cast<std::int64_t>(ca.max_points);
   if (given(a, "--mode")) c.odometry.mode = a.mode;
   if (given(a, "--reference")) c.odometry.reference = a.reference;
+  if (given(a, "--jitter-seed")) c.odometry.guess_jitter_seed = a.jitter_seed;
   if (given(a, "--mapper")) c.mapper.enabled = c.mapper.enabled || a.mapper;
   if (given(a, "--map")) c.mapper.load = a.map;
   if (given(a, "--map-mode")) c.mapper.mode = a.map_mode;
@@ -166,6 +167,13 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
                   "previous-scan (the paper's choice)")
       ->capture_default_str()
       ->check(CLI::IsMember({"local-map", "previous-scan"}));
+  cmd->add_option("--jitter-seed", a.jitter_seed,
+                  "Evaluation only: move every match's initial guess by at most 0.5e-9 m / rad "
+                  "per coordinate, drawn from this seed (0: off). Replays under a few seeds show "
+                  "how far a result depends on chance at the level of rounding "
+                  "(docs/accuracy.md)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{1'000'000'000}));
   cmd->add_option("--config", a.config,
                   "Read the settings from this cndtd configuration file (config/cndtd.toml "
                   "documents every key); options given here override it");

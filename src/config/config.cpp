@@ -167,6 +167,11 @@ const std::vector<Field>& fields() {
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
        "stays at the stamp). Halves RTE and RPE on 30 s simulated drives but drifts more on a "
        "120 s street (docs/odometry.md)."},
+      {"odometry", "guess_jitter_seed", CNDT_REF(odometry.guess_jitter_seed),
+       "For evaluation only (0 = off): every match starts from its initial guess moved by at most "
+       "0.5e-9 m / rad per coordinate, drawn from this seed, to show how far results depend on "
+       "chance at the level of rounding (docs/accuracy.md).",
+       "", 0, 1'000'000'000},
 
       {"mapper", "enabled", CNDT_REF(mapper.enabled),
        "Run the mapper thread: keyframes, eq-7 refinement, a map and the correction T_map_odom "

@@ -92,6 +92,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.min_points = static_cast<std::size_t>(od.min_points);
   o.max_acceleration = od.max_acceleration_mps2;
   o.deskew_to_mid_scan = od.deskew_to_mid_scan;
+  o.guess_jitter_seed = static_cast<std::uint64_t>(od.guess_jitter_seed);
   o.max_scan_points = s.max_points;
 
   const auto& mp = c.mapper;

@@ -43,7 +43,8 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
       chi2_(cv_dof_capacity(o)),
       lookup_cache_(o.max_scan_points),
       map_sampler_(o.map_cell, o.max_scan_points),
-      scan_sampler_(o.scan_cell, o.max_scan_points) {
+      scan_sampler_(o.scan_cell, o.max_scan_points),
+      jitter_state_(o.guess_jitter_seed) {
   // Every buffer resident from the start (core/resident.hpp).
   const TimedPoint timed{Eigen::Vector3d::Zero(), 0.0};
   const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
@@ -334,6 +335,16 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     res.pose = predicted;
   } else {
     core::Pose6 x0 = core::to_pose6(predicted);
+    if (options_.guess_jitter_seed != 0) {
+      for (int k = 0; k < 6; ++k) {
+        // splitmix64, then the top 53 bits as a fraction in [0, 1).
+        std::uint64_t z = (jitter_state_ += 0x9E3779B97F4A7C15ULL);
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+        z ^= z >> 31;
+        x0(k) += 1e-9 * (static_cast<double>(z >> 11) * 0x1.0p-53 - 0.5);
+      }
+    }
     if (!have_prev2_) x0 = search_start(x0);
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
     Eigen::Isometry3d used_motion = motion;  // what the scan was deskewed with (over dt)

@@ -76,6 +76,7 @@ struct ReplayArgs {
   std::string out_dir;
   std::string mode = "consensus";
   std::string reference = "local-map";
+  std::int64_t jitter_seed = 0;  ///< odometry.guess_jitter_seed
   std::size_t max_scans = 0;
   double scan_period_s = 0.1;
   bool mapper = false;

@@ -48,6 +48,7 @@ struct Config {
     std::int64_t min_points = 200;
     double max_acceleration_mps2 = 0.0;
     bool deskew_to_mid_scan = false;
+    std::int64_t guess_jitter_seed = 0;
   } odometry;
   struct Mapper {
     bool enabled = false;

@@ -98,6 +98,12 @@ struct OdometryOptions {
   /// zero motion): the scan is matched again from the prediction, without the pyramid, and
   /// flagged kOdomRematched.
   double max_acceleration = 0.0;
+  /// For evaluation only (0, the default: off). Moves the initial guess of every scan's match by
+  /// a pseudo-random amount of at most 0.5e-9 (m, rad) per coordinate drawn from this seed: a
+  /// match that is well posed lands within its convergence tolerance of the same pose, so
+  /// replays under a few seeds show how far a result depends on chance at the level of
+  /// rounding (docs/accuracy.md, "Sensitivity").
+  std::uint64_t guess_jitter_seed = 0;
 };
 
 /// Most test points one reference voxel can hold after downsampling to map_cell (about 600
@@ -209,6 +215,7 @@ class ConsensusOdometry {
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;
+  std::uint64_t jitter_state_ = 0;  // guess_jitter_seed's generator (splitmix64)
   std::chrono::nanoseconds prev_stamp_{0};
   double prev_period_s_ = 0.1;
 };
