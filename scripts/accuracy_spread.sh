@@ -15,7 +15,7 @@ mkdir -p "$out"
 ate() {  # dir run-name jitter-seed mode
   "$cndt" replay "$1/capture.pcap" --out "$1/$2" --mode "$4" --jitter-seed "$3" >/dev/null 2>&1
   "$cndt" eval --gt "$1/groundtruth.tum" --est "$1/$2/trajectory.tum" |
-    python3 -c 'import json, sys; print(f"{json.load(sys.stdin)[\"ate_rmse_m\"]:.3f}")'
+    python3 -c 'import json, sys; print("%.3f" % json.load(sys.stdin)["ate_rmse_m"])'
 }
 echo "| scene | movers | mode | ATE m: no jitter, seeds 1-$k | median | worst |"
 echo "|---|---|---|---|---|---|"

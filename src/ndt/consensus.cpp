@@ -4,7 +4,6 @@
 #include <array>
 #include <boost/math/distributions/chi_squared.hpp>
 #include <cmath>
-#include <cstddef>
 #include <limits>
 
 #include "cndt/ndt/ndt_score.hpp"
@@ -41,16 +40,12 @@ void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d
   constexpr std::size_t kAhead = 8, kRing = kAhead + 1;
   std::array<Eigen::Vector3d, kRing> placed;
   std::array<std::int32_t, kRing> found{};
-  const Voxel* const voxels = grid.voxels().data();
   auto look_ahead = [&](std::size_t j) {
     const Eigen::Vector3d v = pd.transform(points[j]);
     placed[j % kRing] = v;
     std::int32_t& idx = found[j % kRing];
     grid.indices_around(grid.key_of(v), 1, &idx);
-    if (idx < 0) return;
-    const auto* bytes = reinterpret_cast<const char*>(voxels + idx);
-    __builtin_prefetch(bytes + offsetof(Voxel, has_gaussian));
-    __builtin_prefetch(bytes + offsetof(Voxel, inv_cov) + sizeof(Eigen::Matrix3d) - 1);
+    if (idx >= 0) grid.prefetch_gaussian(idx);
   };
   for (std::size_t j = 0; j < std::min(kAhead, points.size()); ++j) look_ahead(j);
   for (std::size_t i = 0; i < points.size(); ++i) {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstddef>
 #include <limits>
 
 #include "cndt/core/resident.hpp"
@@ -149,7 +148,6 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   std::array<Eigen::Vector3d, kRing> placed;
   std::array<VoxelKey, kRing> keys;
   std::array<std::array<std::int32_t, 7>, kRing> local{};
-  const Voxel* const voxels = grid.voxels().data();
   auto place = [&](std::size_t j) {
     const Eigen::Vector3d v = pd.transform(points[j]);
     const VoxelKey key = grid.key_of(v);
@@ -165,11 +163,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
       grid.indices_around(key, lookups, found);
     }
     for (int n = 0; n < lookups; ++n) {
-      if (found[n] < 0) continue;
-      // The fields scoring reads: has_gaussian to the end of inv_cov.
-      const auto* bytes = reinterpret_cast<const char*>(voxels + found[n]);
-      __builtin_prefetch(bytes + offsetof(Voxel, has_gaussian));
-      __builtin_prefetch(bytes + offsetof(Voxel, inv_cov) + sizeof(Eigen::Matrix3d) - 1);
+      if (found[n] >= 0) grid.prefetch_gaussian(found[n]);
     }
   };
   for (std::size_t j = 0; j < std::min(kPlace, points.size()); ++j) place(j);

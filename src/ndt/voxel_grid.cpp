@@ -17,6 +17,11 @@ std::uint64_t hash(const VoxelKey& k) {
   h ^= static_cast<std::uint32_t>(k.z) * 0x165667B19E3779F9ULL + (h << 6) + (h >> 2);
   return h ^ (h >> 29);
 }
+// Neighbour i of `key` in the order of VoxelGrid::kFaceOffsets.
+VoxelKey face_neighbour(const VoxelKey& key, int i) {
+  const auto& o = VoxelGrid::kFaceOffsets[i];
+  return {key.x + o[0], key.y + o[1], key.z + o[2]};
+}
 }  // namespace
 
 VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
@@ -64,7 +69,7 @@ void VoxelGrid::indices_around(const VoxelKey& key, int n, std::int32_t* out) co
   std::array<std::uint64_t, 7> h;
   for (int i = 0; i < n; ++i) {
     const auto u = static_cast<std::size_t>(i);
-    keys[u] = {key.x + kFaceOffsets[i][0], key.y + kFaceOffsets[i][1], key.z + kFaceOffsets[i][2]};
+    keys[u] = face_neighbour(key, i);
     h[u] = hash(keys[u]);
     __builtin_prefetch(&table_[h[u] & mask_]);
   }
@@ -84,11 +89,7 @@ void VoxelGrid::prefetch_voxel(const Eigen::Vector3d& p) const noexcept {
 }
 
 void VoxelGrid::prefetch_around(const VoxelKey& key, int n) const noexcept {
-  for (int i = 0; i < n; ++i) {
-    const VoxelKey k{key.x + kFaceOffsets[i][0], key.y + kFaceOffsets[i][1],
-                     key.z + kFaceOffsets[i][2]};
-    __builtin_prefetch(&table_[hash(k) & mask_]);
-  }
+  for (int i = 0; i < n; ++i) __builtin_prefetch(&table_[hash(face_neighbour(key, i)) & mask_]);
 }
 
 const Voxel* VoxelGrid::find(const VoxelKey& k) const noexcept {

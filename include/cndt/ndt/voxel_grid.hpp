@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -105,6 +106,12 @@ class VoxelGrid {
   /// Neither changes anything, so a point between the hint and its use may still be added.
   void prefetch_slot(const Eigen::Vector3d& p) const noexcept;
   void prefetch_voxel(const Eigen::Vector3d& p) const noexcept;
+  /// Fetches the fields of voxel `index` that scoring reads (has_gaussian to inv_cov).
+  void prefetch_gaussian(std::int32_t index) const noexcept {
+    const auto* bytes = reinterpret_cast<const char*>(voxels_.data() + index);
+    __builtin_prefetch(bytes + offsetof(Voxel, has_gaussian));
+    __builtin_prefetch(bytes + offsetof(Voxel, inv_cov) + sizeof(Eigen::Matrix3d) - 1);
+  }
   /// A voxel and its six face neighbours: (0,0,0), then +-x, +-y, +-z.
   static constexpr std::int32_t kFaceOffsets[7][3] = {{0, 0, 0},  {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
                                                       {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
