@@ -43,8 +43,8 @@ void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d
   auto look_ahead = [&](std::size_t j) {
     const Eigen::Vector3d v = pd.transform(points[j]);
     placed[j % kRing] = v;
-    std::int32_t& idx = found[j % kRing];
-    grid.indices_around(grid.key_of(v), 1, &idx);
+    const auto idx = static_cast<std::int32_t>(grid.index_of(grid.key_of(v)));
+    found[j % kRing] = idx;
     if (idx >= 0) grid.prefetch_gaussian(idx);
   };
   for (std::size_t j = 0; j < std::min(kAhead, points.size()); ++j) look_ahead(j);

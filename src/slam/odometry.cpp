@@ -4,6 +4,7 @@
 #include <cmath>
 #include <optional>
 
+#include "cndt/core/mix64.hpp"
 #include "cndt/core/resident.hpp"
 
 namespace cndt::slam {
@@ -147,6 +148,13 @@ void ConsensusOdometry::finalize_grids() {
   };
   finalize(grid_);
   for (ndt::VoxelGrid& g : pyramid_) finalize(g);
+}
+
+void ConsensusOdometry::jitter(core::Pose6& x) {
+  for (int k = 0; k < 6; ++k) {
+    x(k) += 1e-9 * (core::unit_fraction(core::mix64(jitter_state_)) - 0.5);
+    jitter_state_ += 0x9E3779B97F4A7C15ULL;  // the splitmix64 sequence from the seed
+  }
 }
 
 void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
@@ -335,16 +343,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
     res.pose = predicted;
   } else {
     core::Pose6 x0 = core::to_pose6(predicted);
-    if (options_.guess_jitter_seed != 0) {
-      for (int k = 0; k < 6; ++k) {
-        // splitmix64, then the top 53 bits as a fraction in [0, 1).
-        std::uint64_t z = (jitter_state_ += 0x9E3779B97F4A7C15ULL);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-        z ^= z >> 31;
-        x0(k) += 1e-9 * (static_cast<double>(z >> 11) * 0x1.0p-53 - 0.5);
-      }
-    }
+    if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) x0 = search_start(x0);
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
     Eigen::Isometry3d used_motion = motion;  // what the scan was deskewed with (over dt)

@@ -6,14 +6,11 @@
 #include <cstdint>
 #include <numbers>
 
+#include "cndt/core/mix64.hpp"
+
 namespace cndt::sim {
 
-inline std::uint64_t mix64(std::uint64_t x) noexcept {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
+using core::mix64;
 
 inline std::uint64_t hash(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) noexcept {
   return mix64(mix64(seed ^ mix64(stream)) ^ index);
@@ -21,7 +18,7 @@ inline std::uint64_t hash(std::uint64_t seed, std::uint64_t stream, std::uint64_
 
 /// Uniform in [0, 1).
 inline double uniform(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) noexcept {
-  return static_cast<double>(hash(seed, stream, index) >> 11) * 0x1.0p-53;
+  return core::unit_fraction(hash(seed, stream, index));
 }
 
 /// Standard normal (Box-Muller over two counter values).

@@ -167,7 +167,8 @@ class ConsensusOdometry {
   // Replaces the newest reference scan by `points` placed at `pose`.
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
-  core::Pose6 search_start(const core::Pose6& x0);    // best of a grid of horizontal offsets
+  void jitter(core::Pose6& x);  // guess_jitter_seed: moves x by at most 0.5e-9 per coordinate
+  core::Pose6 search_start(const core::Pose6& x0);  // best of a grid of horizontal offsets
   void add_to_grids(std::span<const Eigen::Vector3d> points);
   void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
@@ -215,7 +216,8 @@ class ConsensusOdometry {
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;
-  std::uint64_t jitter_state_ = 0;  // guess_jitter_seed's generator (splitmix64)
+  // guess_jitter_seed's generator: the next counter value for core::mix64.
+  std::uint64_t jitter_state_ = 0;
   std::chrono::nanoseconds prev_stamp_{0};
   double prev_period_s_ = 0.1;
 };
