@@ -29,13 +29,6 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     const double scale = std::min({1.0, o.max_translation_step / std::max(tn, 1e-12),
                                    o.max_rotation_step / std::max(rn, 1e-12)});
     step *= scale;
-    // Converged when the step Newton proposes is already within the tolerance: trying it would
-    // cost a scoring (and, this close to the minimum, often a run of halvings, as the change in
-    // S falls to the level of rounding) for less movement than the tolerance allows.
-    if (step.head<3>().norm() < o.translation_eps && step.tail<3>().norm() < o.rotation_eps) {
-      res.converged = true;
-      break;
-    }
     // Backtracking line search (Armijo) on S. The full step is usually accepted, so its trial
     // carries the derivatives the next iteration needs.
     const double slope = cur.gradient.dot(step);
