@@ -189,7 +189,7 @@ struct Pipeline::Impl {
       ScanSlot& slot = slots[idx];
       ScanResult res;
       const auto t0 = Clock::now();
-      res.odometry = odometry.process(slot.scan);
+      res.odometry = odometry.estimate(slot.scan);  // the reference update follows the pose out
       const auto t1 = Clock::now();
       res.odometry_ms = ms_between(t0, t1);
       res.sequence = slot.scan.sequence;
@@ -206,10 +206,13 @@ struct Pipeline::Impl {
         if (options.live) {
           Ack ack;
           while (acks.pop(ack)) correction = ack.correction;  // the newest finished
-          publishing = publish(res, completed, correction);
+          send(res, completed, correction);
+          commit(res);
+          publishing = hand_on(res);
         } else {
           // Published once the mapper has answered for this scan, with the correction it had
           // then, as a single thread would; the odometry meanwhile goes on.
+          commit(res);
           if (unpublished_size == unpublished.size()) {
             publishing = publish_unpublished(correction, true, 1);
           }
@@ -219,7 +222,9 @@ struct Pipeline::Impl {
           publishing = publishing && publish_unpublished(correction, false, unpublished_size);
         }
       } else {
-        publishing = publish(res, completed, correction);
+        send(res, completed, correction);
+        commit(res);
+        publishing = hand_on(res);
       }
       if (!publishing) break;
       scans_done.fetch_add(1, std::memory_order_relaxed);
@@ -244,9 +249,23 @@ struct Pipeline::Impl {
     odometry_done.store(true);
   }
 
-  // Sends the pose of `res` (unless skipped) corrected by `correction` and hands the result on,
-  // its latency counted from `completed`; false when stopping in replay.
+  // Adds the scan just estimated to the odometry's reference (after its pose went out, live),
+  // its time to the scan's odometry time.
+  void commit(ScanResult& res) {
+    const auto t0 = Clock::now();
+    odometry.commit();
+    res.odometry_ms += ms_between(t0, Clock::now());
+  }
+
+  // send(), then hand_on().
   bool publish(ScanResult& res, Clock::time_point completed, const Eigen::Isometry3d& correction) {
+    send(res, completed, correction);
+    return hand_on(res);
+  }
+
+  // Sends the pose of `res` (unless skipped) corrected by `correction`, its latency counted
+  // from `completed`.
+  void send(ScanResult& res, Clock::time_point completed, const Eigen::Isometry3d& correction) {
     const slam::OdometryResult& r = res.odometry;
     const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
     if (res.map_corrected) {
@@ -263,6 +282,10 @@ struct Pipeline::Impl {
                                           publisher.options()));
     }
     res.latency_ms = ms_between(completed, Clock::now());
+  }
+
+  // Hands the result on to the result side; false when stopping in replay.
+  bool hand_on(ScanResult& res) {
     if (options.live) {
       if (!results.push(res)) results_dropped.fetch_add(1, std::memory_order_relaxed);
       return true;

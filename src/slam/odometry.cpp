@@ -288,6 +288,19 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
 }
 
 OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
+  OdometryResult res = estimate(scan);
+  commit();
+  return res;
+}
+
+void ConsensusOdometry::commit() {
+  if (!reference_due_) return;
+  reference_due_ = false;
+  update_reference(reference_pose_);
+}
+
+OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
+  commit();  // the previous scan's, when the caller has not
   OdometryResult res;
   res.stamp = scan.stamp;
   if (!scan.complete()) res.flags |= kOdomScanIncomplete;
@@ -326,7 +339,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
   if (!have_prev_) {
     res.flags |= kOdomFirstScan;
     res.pose = Eigen::Isometry3d::Identity();
-    update_reference(res.pose);
+    defer_reference(res.pose);
     newest_unskewed_ = options_.deskew;
     newest_src_ = map_src_;
     prev_pose_ = res.pose;
@@ -422,7 +435,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
       (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomDegenerate | kOdomRematched)) == 0;
   have_prev2_ = true;
   newest_unskewed_ = false;
-  update_reference(res.pose);
+  defer_reference(res.pose);
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;
   if (options_.deskew && options_.deskew_to_mid_scan) {

@@ -196,6 +196,39 @@ TEST(Odometry, GuessJitterIsRepeatableAndTakesEffect) {
   EXPECT_TRUE(b_differs);
 }
 
+// estimate() leaves the scan's entry into the reference to commit() (a real-time caller
+// publishes the pose in between): until then the reference is that of the scans before, and
+// the poses equal process()'s, whether commit() is called or left to the next estimate().
+TEST(Odometry, EstimateThenCommitEqualsProcess) {
+  std::vector<core::Scan> scans;
+  drive_street(2.0, 2, 3, [&](core::Scan& scan) { scans.push_back(scan); });
+  OdometryOptions o;
+  ConsensusOdometry whole(o), split(o), uncommitted(o);
+  std::size_t entered = 0;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const OdometryResult a = whole.process(scans[i]);
+    const std::size_t before = split.reference_scans();
+    std::vector<Eigen::Vector3d> held_before, held_after;
+    split.reference_points(held_before);
+    const OdometryResult b = split.estimate(scans[i]);
+    split.reference_points(held_after);
+    EXPECT_EQ(split.reference_scans(), before) << "scan " << i;
+    EXPECT_EQ(held_after.size(), held_before.size()) << "scan " << i;
+    split.commit();
+    split.commit();  // nothing left to do
+    expect_grid_holds(split);
+    EXPECT_EQ(split.reference_scans(), whole.reference_scans()) << "scan " << i;
+    if (split.reference_scans() > before) ++entered;
+    const OdometryResult c = uncommitted.estimate(scans[i]);
+    EXPECT_TRUE(a.pose.matrix() == b.pose.matrix()) << "scan " << i;
+    EXPECT_TRUE(a.pose.matrix() == c.pose.matrix()) << "scan " << i;
+    EXPECT_EQ(a.cm, b.cm);
+    EXPECT_EQ(a.cm, c.cm);
+    EXPECT_EQ(a.flags, b.flags);
+  }
+  EXPECT_GE(entered, 5u);  // the reference grew at commit(), not at estimate()
+}
+
 // The local map's scans share one buffer of local_map_points, fewer than local_map_scans would
 // fill: new scans push the oldest ones out and the buffer wraps around, also past scans left at
 // its end. After every scan the grid holds exactly the points of the scans in the map. With

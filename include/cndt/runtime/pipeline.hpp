@@ -55,7 +55,7 @@ struct ScanResult {
   bool map_corrected = false;
   bool published_pose = false;  ///< false for a skipped scan (no pose)
   std::uint64_t sequence = 0;   ///< the scan's sequence number
-  double odometry_ms = 0.0;     ///< time in ConsensusOdometry::process
+  double odometry_ms = 0.0;     ///< time in the odometry for this scan (estimate and commit)
   double latency_ms = 0.0;      ///< from the scan's completion to its pose being published
 };
 
