@@ -18,13 +18,8 @@ seeds=("$@")
 cndt=$build/src/apps/cndt
 captures=$root/out/accuracy-seeds
 mkdir -p "$captures" "$results"
-drives=()
-for scene in street campus loop; do
-  for seed in 1 2 5 6 8 9 10 11; do drives+=("$scene-$seed-4"); done
-  drives+=("$scene-7-8")
-done
-drives=("${drives[@]/street-7-8/street-3-8}")
-drives+=(street-12-8)
+# shellcheck source=scripts/accuracy_drives.sh
+source "$root/scripts/accuracy_drives.sh"
 jobs=()
 for d in "${drives[@]}"; do
   for j in "${seeds[@]}"; do jobs+=("$d $j"); done

@@ -11,13 +11,8 @@ seconds=${2:-30}
 cndt=$build/src/apps/cndt
 out=$root/out/accuracy-seeds
 mkdir -p "$out"
-drives=()
-for scene in street campus loop; do
-  for seed in 1 2 5 6 8 9 10 11; do drives+=("$scene-$seed-4"); done
-  drives+=("$scene-7-8")
-done
-drives=("${drives[@]/street-7-8/street-3-8}")
-drives+=(street-12-8)
+# shellcheck source=scripts/accuracy_drives.sh
+source "$root/scripts/accuracy_drives.sh"
 run() {  # scene-seed-movers
   IFS=- read -r scene seed movers <<<"$1"
   local dir=$out/$1
