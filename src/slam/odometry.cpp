@@ -296,7 +296,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
 void ConsensusOdometry::commit() {
   if (!reference_due_) return;
   reference_due_ = false;
-  update_reference(reference_pose_);
+  update_reference(prev_pose_);  // the scan's pose (at mid-revolution with deskew_to_mid_scan)
 }
 
 OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
@@ -339,7 +339,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   if (!have_prev_) {
     res.flags |= kOdomFirstScan;
     res.pose = Eigen::Isometry3d::Identity();
-    defer_reference(res.pose);
+    reference_due_ = true;  // at prev_pose_, set below
     newest_unskewed_ = options_.deskew;
     newest_src_ = map_src_;
     prev_pose_ = res.pose;
@@ -435,7 +435,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomDegenerate | kOdomRematched)) == 0;
   have_prev2_ = true;
   newest_unskewed_ = false;
-  defer_reference(res.pose);
+  reference_due_ = true;  // at prev_pose_, set next
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;
   if (options_.deskew && options_.deskew_to_mid_scan) {

@@ -172,11 +172,6 @@ class ConsensusOdometry {
   void deskew_all(const Eigen::Isometry3d& motion, double period_s);  // test_ and cv_points_
   // Adds the current scan (cv_points_, placed at `pose`) to the reference when it is due.
   void update_reference(const Eigen::Isometry3d& pose);
-  // Leaves update_reference(pose) to commit().
-  void defer_reference(const Eigen::Isometry3d& pose) {
-    reference_pose_ = pose;
-    reference_due_ = true;
-  }
   // Replaces the newest reference scan by `points` placed at `pose`.
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
@@ -214,9 +209,8 @@ class ConsensusOdometry {
   std::vector<core::RingRegion> history_;
   std::size_t history_head_ = 0, history_size_ = 0;
   Eigen::Isometry3d last_keyframe_pose_ = Eigen::Isometry3d::Identity();
-  // estimate() has left the reference update of its scan, at reference_pose_, to commit().
+  // estimate() has left the reference update of its scan, at prev_pose_, to commit().
   bool reference_due_ = false;
-  Eigen::Isometry3d reference_pose_ = Eigen::Isometry3d::Identity();
   // The newest reference scan was added without a motion estimate (first scan): kept in the
   // sensor frame so it can be deskewed once the motion is known.
   bool newest_unskewed_ = false;
