@@ -25,18 +25,12 @@ for d in "${drives[@]}"; do
   for j in "${seeds[@]}"; do jobs+=("$d $j"); done
 done
 run() {  # scene-seed-movers jitter-seed
-  IFS=- read -r scene seed movers <<<"$1"
   local dir=$captures/$1 out=$results/$1-j$2
-  # Two jobs may want the same capture: the first makes it, under a lock.
-  (
-    flock 9
-    [[ -f $dir/capture.pcap ]] || "$cndt" sim --scene "$scene" --duration 30 \
-      --movers "$movers" --seed "$seed" --out "$dir" >/dev/null 2>&1
-  ) 9>"$captures/.lock-$1"
+  drive_capture "$1" 30 "$captures"
   "$cndt" replay "$dir/capture.pcap" --out "$out" --mode "$mode" --jitter-seed "$2" >/dev/null 2>&1
   "$cndt" eval --gt "$dir/groundtruth.tum" --est "$out/trajectory.tum" >"$out/eval.json"
 }
-export -f run
+export -f run drive_capture
 export cndt captures results mode
 # shellcheck disable=SC2016 # expanded by the inner shell
 printf '%s\n' "${jobs[@]}" | xargs -P 2 -L 1 bash -c 'run "$0" "$1"'

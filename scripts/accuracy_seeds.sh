@@ -14,17 +14,15 @@ mkdir -p "$out"
 # shellcheck source=scripts/accuracy_drives.sh
 source "$root/scripts/accuracy_drives.sh"
 run() {  # scene-seed-movers
-  IFS=- read -r scene seed movers <<<"$1"
   local dir=$out/$1
-  [[ -f $dir/capture.pcap ]] || "$cndt" sim --scene "$scene" --duration "$seconds" \
-    --movers "$movers" --seed "$seed" --out "$dir" >/dev/null 2>&1
+  drive_capture "$1" "$seconds" "$out"
   for mode in consensus naive; do
     "$cndt" replay "$dir/capture.pcap" --out "$dir/$mode" --mode "$mode" >/dev/null 2>&1
     "$cndt" eval --gt "$dir/groundtruth.tum" --est "$dir/$mode/trajectory.tum" \
       > "$dir/$mode/eval.json"
   done
 }
-export -f run
+export -f run drive_capture
 export cndt out seconds
 printf '%s\n' "${drives[@]}" | xargs -P 2 -I{} bash -c 'run {}'
 python3 - "$out" "${drives[@]}" <<'PY'
