@@ -144,7 +144,10 @@ const std::vector<Field>& fields() {
       {"odometry", "deskew", CNDT_REF(odometry.deskew),
        "Undistort each scan with the estimated motion (every point has its firing time)."},
       {"odometry", "deskew_refinements", CNDT_REF(odometry.deskew_refinements),
-       "Re-deskew with the estimated motion and match again this many times.", "", 0, 5},
+       "The matches solve for the scan's motion with its pose; when a match ends more than "
+       "0.1 m or 0.01 rad from the pose the scan was deskewed for, it is deskewed again and "
+       "matched again, at most this many times.",
+       "", 0, 5},
       {"odometry", "local_map_scans", CNDT_REF(odometry.local_map_scans),
        "Scans the local-map reference holds.", "scans", 1, 1000},
       {"odometry", "local_map_points", CNDT_REF(odometry.local_map_points),

@@ -116,8 +116,21 @@ double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours n
 
 ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                       const core::Pose6& x, bool derivatives, VoxelMask mask, Neighbours neighbours,
-                      LookupCache* cache) {
+                      LookupCache* cache, const ScanMotion* motion) {
   const PoseDerivatives pd(x);
+  // The pose's change from motion->base in the sensor frame, (v, w): each point moves by its
+  // lever times v + w x p (ScanMotion).
+  Eigen::Vector3d mv = Eigen::Vector3d::Zero(), mw = Eigen::Vector3d::Zero();
+  if (motion != nullptr) {
+    const Eigen::Isometry3d rel = core::to_isometry(motion->base).inverse() * core::to_isometry(x);
+    const Eigen::AngleAxisd aa(rel.linear());
+    mv = rel.translation();
+    mw = aa.angle() * aa.axis();
+  }
+  auto source = [&](std::size_t j) -> Eigen::Vector3d {
+    if (motion == nullptr) return points[j];
+    return points[j] + motion->lever[j] * (mv + mw.cross(points[j]));
+  };
   ScoreResult r;
   const int lookups = static_cast<int>(neighbours);
   bool cached = cache != nullptr;
@@ -145,11 +158,12 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   // of the voxels around it are fetched (when its voxel changed); kFind points ahead they are
   // looked up and the voxels fetched; then it is scored.
   constexpr std::size_t kPlace = 16, kFind = 8, kRing = kPlace + 1;  // i's entry outlives i + 16
-  std::array<Eigen::Vector3d, kRing> placed;
+  std::array<Eigen::Vector3d, kRing> placed, moved;
   std::array<VoxelKey, kRing> keys;
   std::array<std::array<std::int32_t, 7>, kRing> local{};
   auto place = [&](std::size_t j) {
-    const Eigen::Vector3d v = pd.transform(points[j]);
+    moved[j % kRing] = source(j);
+    const Eigen::Vector3d v = pd.transform(moved[j % kRing]);
     const VoxelKey key = grid.key_of(v);
     placed[j % kRing] = v;
     keys[j % kRing] = key;
@@ -169,7 +183,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   for (std::size_t j = 0; j < std::min(kPlace, points.size()); ++j) place(j);
   for (std::size_t j = 0; j < std::min(kFind, points.size()); ++j) find(j);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d& p = points[i];
+    const Eigen::Vector3d p = moved[i % kRing];
     const Eigen::Vector3d v = placed[i % kRing];
     const std::int32_t* found = cached ? &cache->indices_[i * 7] : local[i % kRing].data();
     if (i + kPlace < points.size()) place(i + kPlace);
@@ -196,8 +210,19 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]
     Eigen::Matrix3d Jr;
     for (int k = 0; k < 3; ++k) Jr.col(k) = pd.d1(k) * p;
-    g_t += b;
-    g_r.noalias() += Jr.transpose() * b;
+    if (motion != nullptr) {
+      // The Jacobian is (1 + lever) J: the gradient takes b that many times, the Hessian's
+      // terms the square of it.
+      const double k = 1.0 + motion->lever[i];
+      b *= k;
+      g_t += b;
+      g_r.noalias() += Jr.transpose() * b;
+      b *= k;
+      M *= k * k;
+    } else {
+      g_t += b;
+      g_r.noalias() += Jr.transpose() * b;
+    }
     h_tt += M;
     const Eigen::Matrix3d MJr = M * Jr;
     h_tr += MJr;

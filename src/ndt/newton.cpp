@@ -7,10 +7,10 @@ namespace cndt::ndt {
 
 NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                           const core::Pose6& initial, const NewtonOptions& o, VoxelMask mask,
-                          LookupCache* cache) {
+                          LookupCache* cache, const ScanMotion* motion) {
   NewtonResult res;
   res.pose = initial;
-  ScoreResult cur = ndt_score(grid, points, res.pose, true, mask, o.neighbours, cache);
+  ScoreResult cur = ndt_score(grid, points, res.pose, true, mask, o.neighbours, cache, motion);
   res.score = cur.score;
   res.matched = cur.matched;
   res.hessian = cur.hessian;
@@ -34,12 +34,12 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     const double slope = cur.gradient.dot(step);
     double t = 1.0;
     core::Pose6 next = res.pose + step;
-    ScoreResult trial = ndt_score(grid, points, next, true, mask, o.neighbours, cache);
+    ScoreResult trial = ndt_score(grid, points, next, true, mask, o.neighbours, cache, motion);
     bool trial_has_derivatives = true;
     for (int k = 0; k < 10 && trial.score > cur.score + 1e-4 * t * slope; ++k) {
       t *= 0.5;
       next = res.pose + t * step;
-      trial = ndt_score(grid, points, next, false, mask, o.neighbours, cache);
+      trial = ndt_score(grid, points, next, false, mask, o.neighbours, cache, motion);
       trial_has_derivatives = false;
     }
     if (trial.score > cur.score) {
@@ -50,7 +50,7 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     res.pose = next;
     cur = trial_has_derivatives
               ? trial
-              : ndt_score(grid, points, res.pose, true, mask, o.neighbours, cache);
+              : ndt_score(grid, points, res.pose, true, mask, o.neighbours, cache, motion);
     res.score = cur.score;
     res.matched = cur.matched;
     res.hessian = cur.hessian;

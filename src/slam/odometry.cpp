@@ -55,6 +55,7 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   for (auto* v : {&test_, &cv_points_, &scratch_}) {
     core::reserve_resident(*v, o.max_scan_points, zero);
   }
+  core::reserve_resident(lever_, o.max_scan_points, 0.0);
   if (o.deskew_to_mid_scan) core::reserve_resident(stamp_points_, o.max_scan_points, zero);
   const std::size_t slots =
       o.reference == Reference::kPreviousScan ? 1 : std::max<std::size_t>(1, o.local_map_scans);
@@ -103,7 +104,8 @@ core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0) {
 core::Pose6 ConsensusOdometry::coarse_to_fine(const core::Pose6& x0) {
   core::Pose6 x = x0;
   for (ndt::VoxelGrid& g : pyramid_) {
-    x = ndt::newton_solve(g, test_, x, options_.pyramid, nullptr, &lookup_cache_).pose;
+    x = ndt::newton_solve(g, test_, x, options_.pyramid, nullptr, &lookup_cache_, scan_motion())
+            .pose;
   }
   return x;
 }
@@ -190,6 +192,17 @@ void ConsensusOdometry::deskew_all(const Eigen::Isometry3d& motion, double perio
   deskew(map_src_, motion, period_s, cv_points_);
 }
 
+void ConsensusOdometry::deskew_at(const Eigen::Isometry3d& pose) {
+  deskew_all(scale_motion(prev_pose_.inverse() * pose, to_period_), period_s_);
+  scan_motion_.base = core::to_pose6(pose);
+}
+
+const ndt::ScanMotion* ConsensusOdometry::scan_motion() {
+  if (!solve_motion_) return nullptr;
+  scan_motion_.lever = std::span<const double>(lever_.data(), test_.size());
+  return &scan_motion_;
+}
+
 double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>& cv) {
   residuals_.reset(grid_.size());
   ndt::accumulate_residuals(grid_, cv_points_, x, residuals_);
@@ -262,11 +275,13 @@ void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
 bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
   ndt::NewtonResult r;
   if (options_.mode == OdometryMode::kNaive) {
-    r = ndt::newton_solve(grid_, test_, x0, options_.naive, nullptr, &lookup_cache_);
+    r = ndt::newton_solve(grid_, test_, x0, options_.naive, nullptr, &lookup_cache_, scan_motion());
   } else {
-    const ndt::NewtonResult coarse =
-        ndt::newton_solve(grid_, test_, x0, options_.coarse, nullptr, &lookup_cache_);
+    const ndt::NewtonResult coarse = ndt::newton_solve(grid_, test_, x0, options_.coarse, nullptr,
+                                                       &lookup_cache_, scan_motion());
     res.coarse_iterations += coarse.iterations;
+    // The points as the coarse pose undistorts them: for Cv, and the base of the fine match.
+    if (solve_motion_) deskew_at(core::to_isometry(coarse.pose));
     // Cv of every reference voxel at the coarse pose (eqs 8-9), then the cut at eta.
     consensus_at(coarse.pose, cv_);
     mask_.assign(grid_.size(), 1);
@@ -278,7 +293,8 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
         if (mask_[i] != 0) ++res.voxels_after;
       }
     }
-    r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_, &lookup_cache_);
+    r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_, &lookup_cache_,
+                          scan_motion());
   }
   res.fine_iterations += r.iterations;
   res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
@@ -333,6 +349,13 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   scan_sampler_.run(map_src_, scan_src_);
   // The deskew motion spans one scan period; `motion` spans dt.
   const double to_period = period / std::max(dt, 1e-3);
+  period_s_ = period;
+  to_period_ = to_period;
+  // A point fired t after the stamp moves t / dt times the pose's change with the undistortion
+  // (measured from mid-revolution with deskew_to_mid_scan): its lever in the matches.
+  const double lever_origin = options_.deskew_to_mid_scan ? 0.5 : 0.0;
+  lever_.clear();
+  for (const TimedPoint& p : scan_src_) lever_.push_back((p.t / period - lever_origin) * to_period);
   const Eigen::Isometry3d predicted_deskew = scale_motion(motion, to_period);  // over one period
   deskew_all(predicted_deskew, period);
   res.points = test_.size();
@@ -350,6 +373,9 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     return res;
   }
   const Eigen::Isometry3d predicted = prev_pose_ * motion;
+  scan_motion_.base = core::to_pose6(predicted);  // what test_ is deskewed for
+  // Not while the newest reference scan is still undistorted (below).
+  solve_motion_ = options_.deskew && period > 0.0 && !newest_unskewed_;
   std::optional<Eigen::Isometry3d> first_velocity;  // motion per period, from the first match
   if (test_.size() < options_.min_points) {
     res.flags |= kOdomTooFewPoints;
@@ -359,7 +385,6 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) x0 = search_start(x0);
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
-    Eigen::Isometry3d used_motion = motion;  // what the scan was deskewed with (over dt)
     bool converged = false;
     int passes = 1 + options_.deskew_refinements;
     for (int pass = 0; pass < passes; ++pass) {
@@ -379,19 +404,22 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
           prev_pose_ = last_keyframe_pose_;
         }
         replace_newest(scratch_, last_keyframe_pose_);
-        used_motion = scale_motion(estimated, dt / period);
         deskew_all(estimated, period);
-        x0 = core::to_pose6(prev_pose_ * used_motion);
+        x0 = core::to_pose6(prev_pose_ * scale_motion(estimated, dt / period));
+        scan_motion_.base = x0;
+        solve_motion_ = options_.deskew;
         passes = std::max(passes, pass + 2);  // matched again even with no refinements
         continue;
       }
-      // Deskew again with the motion just estimated if it differs from the one used.
-      const Eigen::Isometry3d diff = used_motion.inverse() * estimated;
-      const bool consistent =
-          diff.translation().norm() < 0.02 && Eigen::AngleAxisd(diff.linear()).angle() < 0.002;
-      if (!options_.deskew || consistent || pass + 1 == passes) break;
-      used_motion = estimated;
-      deskew_all(scale_motion(estimated, to_period), period);
+      // The match moved the undistortion with the pose to first order (ndt::ScanMotion).
+      // Deskew again and match from there only when the pose ended so far from the base
+      // that the second order counts: 0.1 m moves a point fired at the end of the period by
+      // about |w| x 0.1 m more than modelled; 0.01 rad by 0.005 % of its range.
+      const Eigen::Isometry3d diff = core::to_isometry(scan_motion_.base).inverse() * res.pose;
+      const bool linear =
+          diff.translation().norm() < 0.1 && Eigen::AngleAxisd(diff.linear()).angle() < 0.01;
+      if (!solve_motion_ || linear || pass + 1 == passes) break;
+      deskew_at(res.pose);
       x0 = core::to_pose6(res.pose);
     }
     // A match that implies an impossible acceleration: matched again from the prediction
@@ -403,6 +431,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
         (res.pose.translation() - predicted.translation()).norm() > max_jump) {
       res.flags |= kOdomRematched;
       deskew_all(predicted_deskew, period);
+      scan_motion_.base = core::to_pose6(predicted);
       converged = match(core::to_pose6(predicted), res);
     }
     if (!converged) res.flags |= kOdomNotConverged;

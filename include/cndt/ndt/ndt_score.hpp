@@ -41,6 +41,19 @@ class PoseDerivatives {
 
 class LookupCache;
 
+/// The scan's own motion, solved with its pose. A scan is undistorted (deskewed) with the motion
+/// that the pose `base` implies under constant velocity; at another pose x that motion changes
+/// by the pose's change from `base`, (v, w) = log(X(base)^-1 X(x)) in the sensor frame, and each
+/// point moves on by lever[i] times that change: p_i + lever_i (v + w x p_i), to first order
+/// (lever_i is the point's firing time over the time between scans, 0 at the scan's reference
+/// time). Matching then solves for the pose and the undistortion it implies together instead of
+/// alternating between them. The Jacobian of the moved point is (1 + lever_i) times the rigid
+/// one (exact at `base`); the Hessian takes (1 + lever_i)^2 times the rigid terms.
+struct ScanMotion {
+  core::Pose6 base = core::Pose6::Zero();
+  std::span<const double> lever;  ///< one per point
+};
+
 struct ScoreResult {
   double score = 0.0;
   Vector6d gradient = Vector6d::Zero();
@@ -71,7 +84,8 @@ class LookupCache {
 
  private:
   friend ScoreResult ndt_score(const VoxelGrid&, std::span<const Eigen::Vector3d>,
-                               const core::Pose6&, bool, VoxelMask, Neighbours, LookupCache*);
+                               const core::Pose6&, bool, VoxelMask, Neighbours, LookupCache*,
+                               const ScanMotion*);
   void reset(std::size_t points);
   std::size_t capacity_;
   const VoxelGrid* grid_ = nullptr;
@@ -90,9 +104,11 @@ double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours n
 
 /// S(x) for `points` (sensor frame) against `grid`; with `derivatives`, also its gradient and
 /// Hessian. Each point adds one term per Gaussian of the voxels `neighbours` selects. A cache
-/// saves voxel lookups across calls on the same grid.
+/// saves voxel lookups across calls on the same grid. With `motion`, the points move with the
+/// pose's change from motion->base as ScanMotion describes.
 ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                       const core::Pose6& x, bool derivatives, VoxelMask mask = nullptr,
-                      Neighbours neighbours = Neighbours::kOne, LookupCache* cache = nullptr);
+                      Neighbours neighbours = Neighbours::kOne, LookupCache* cache = nullptr,
+                      const ScanMotion* motion = nullptr);
 
 }  // namespace cndt::ndt

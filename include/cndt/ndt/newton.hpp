@@ -28,8 +28,10 @@ struct NewtonResult {
 
 /// Minimises S(x) from `initial`. Never throws; a pose where no point matches returns
 /// converged = false with the initial pose. A cache saves voxel lookups between iterations.
+/// With `motion`, the scan's undistortion is solved with the pose (ScanMotion).
 NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                           const core::Pose6& initial, const NewtonOptions& options,
-                          VoxelMask mask = nullptr, LookupCache* cache = nullptr);
+                          VoxelMask mask = nullptr, LookupCache* cache = nullptr,
+                          const ScanMotion* motion = nullptr);
 
 }  // namespace cndt::ndt

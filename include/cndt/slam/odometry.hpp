@@ -58,7 +58,10 @@ struct OdometryOptions {
   /// the first reference it covers only a sector and the start-up matches drift off by
   /// decimetres; skipped, the trajectory starts at the first whole revolution.
   bool skip_partial_first_scan = true;
-  int deskew_refinements = 2;  ///< re-deskew with the estimated motion and match again
+  /// The matches solve for the scan's motion with its pose (ndt::ScanMotion). A match ending
+  /// beyond that model's first-order range (0.1 m / 0.01 rad from the pose the scan was
+  /// deskewed for) is deskewed again and matched again, at most this many times.
+  int deskew_refinements = 2;
   std::size_t max_scan_points = 150'000;
   std::size_t max_map_voxels = 400'000;
   std::size_t min_points = 200;  ///< fewer matched points: the scan is not matched
@@ -170,6 +173,12 @@ class ConsensusOdometry {
   void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion, double period_s,
               std::vector<Eigen::Vector3d>& out) const;
   void deskew_all(const Eigen::Isometry3d& motion, double period_s);  // test_ and cv_points_
+  // deskew_all with the motion `pose` implies (from prev_pose_ under constant velocity), which
+  // becomes the base of the scan motion the matches solve for.
+  void deskew_at(const Eigen::Isometry3d& pose);
+  // The scan's motion solved with its pose (ndt::ScanMotion) about the last deskew_at, or
+  // nullptr when the scan is not deskewed.
+  const ndt::ScanMotion* scan_motion();
   // Adds the current scan (cv_points_, placed at `pose`) to the reference when it is due.
   void update_reference(const Eigen::Isometry3d& pose);
   // Replaces the newest reference scan by `points` placed at `pose`.
@@ -195,6 +204,10 @@ class ConsensusOdometry {
   std::vector<TimedPoint> map_src_;            // raw_ at map_cell
   std::vector<TimedPoint> scan_src_;           // map_src_ at scan_cell
   std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
+  std::vector<double> lever_;                  // per test_ point: its ndt::ScanMotion lever
+  ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for
+  bool solve_motion_ = false;                  // matches solve the scan's motion (deskew)
+  double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
   std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
   std::vector<Eigen::Vector3d> stamp_points_;  // deskew_to_mid_scan: cv_points_ at the stamp
   Eigen::Isometry3d deskewed_with_ = Eigen::Isometry3d::Identity();  // last deskew_all motion

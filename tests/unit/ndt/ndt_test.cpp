@@ -296,10 +296,10 @@ TEST(LookupCache, GivesTheSameScoresAsFreshLookups) {
   }
 }
 
-TEST(Newton, RecoversAKnownMotionOfAStructuredScene) {
-  // Ground, two walls and a box, sampled densely; the test scan sees it from a moved sensor.
+// Ground, two walls and a box, sampled densely (1 cm noise).
+std::vector<Eigen::Vector3d> structured_world(std::uint32_t seed) {
   std::vector<Eigen::Vector3d> world;
-  std::mt19937 rng(3);
+  std::mt19937 rng(seed);
   std::normal_distribution<double> n(0.0, 0.01);
   for (double a = -10; a <= 10; a += 0.1) {
     for (double b = -10; b <= 10; b += 0.1) world.emplace_back(a, b, -1.8 + n(rng));
@@ -314,6 +314,12 @@ TEST(Newton, RecoversAKnownMotionOfAStructuredScene) {
       world.emplace_back(3 + n(rng), -4.0 - a, z);
     }
   }
+  return world;
+}
+
+TEST(Newton, RecoversAKnownMotionOfAStructuredScene) {
+  // The test scan sees the world from a moved sensor.
+  const std::vector<Eigen::Vector3d> world = structured_world(3);
   VoxelGrid grid({0.5, 200'000, 5, 0.001});
   for (const auto& p : world) grid.add(p);
   grid.finalize();
@@ -337,6 +343,90 @@ TEST(Newton, RecoversAKnownMotionOfAStructuredScene) {
   EXPECT_LT((r.pose.head<3>() - truth.head<3>()).norm(), 0.01);
   EXPECT_LT((r.pose.tail<3>() - truth.tail<3>()).norm(), 0.001);
   EXPECT_LE(r.iterations, 30);
+}
+
+// The scan's motion solved with the pose: at the base the points are where they were given and
+// the gradient is that of S with the points moving with the pose (finite differences).
+TEST(ScanMotion, GradientEqualsFiniteDifferencesAtTheBase) {
+  for (std::uint32_t seed : {2u, 5u, 8u}) {
+    const Scene s = random_scene(seed);
+    std::mt19937 rng(seed + 2000);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), frac(0.0, 1.0);
+    Pose6 x;
+    x << 0.1 * u(rng), 0.1 * u(rng), 0.1 * u(rng), 0.03 * u(rng), 0.03 * u(rng), 0.03 * u(rng);
+    std::vector<Eigen::Vector3d> pts;
+    const Eigen::Isometry3d T = core::to_isometry(x);
+    for (const auto& p : s.test) pts.push_back(T.inverse() * p);
+    std::vector<double> lever;
+    for (std::size_t i = 0; i < pts.size(); ++i) lever.push_back(frac(rng));
+    const ScanMotion motion{x, lever};
+    const ScoreResult rigid = ndt_score(s.grid, pts, x, true, nullptr, Neighbours::kSeven);
+    const ScoreResult r =
+        ndt_score(s.grid, pts, x, true, nullptr, Neighbours::kSeven, nullptr, &motion);
+    ASSERT_GT(r.matched, 300u);
+    EXPECT_EQ(r.score, rigid.score);
+    const double h = 1e-6;
+    Vector6d g_fd;
+    for (int k = 0; k < 6; ++k) {
+      Pose6 a = x, b = x;
+      a[k] += h;
+      b[k] -= h;
+      g_fd[k] =
+          (ndt_score(s.grid, pts, a, false, nullptr, Neighbours::kSeven, nullptr, &motion).score -
+           ndt_score(s.grid, pts, b, false, nullptr, Neighbours::kSeven, nullptr, &motion).score) /
+          (2 * h);
+    }
+    const double g_err = (r.gradient - g_fd).norm() / g_fd.norm();
+    const double rigid_err = (rigid.gradient - g_fd).norm() / g_fd.norm();
+    std::printf("seed %u: gradient relative error %.2e (rigid gradient: %.2e)\n", seed, g_err,
+                rigid_err);
+    EXPECT_LT(g_err, 1e-4);
+    EXPECT_GT(rigid_err, 0.05);  // the levers matter: the rigid gradient is another one
+  }
+}
+
+// A scan undistorted for a wrong guess of its pose (and so of its motion): the points fired late
+// in the revolution are off by more than the early ones. Solving for the motion with the pose
+// recovers the pose; a rigid match settles on a compromise between early and late points.
+TEST(ScanMotion, NewtonSolvesPoseAndUndistortionTogether) {
+  const std::vector<Eigen::Vector3d> world = structured_world(4);
+  VoxelGrid grid({0.5, 200'000, 5, 0.001});
+  for (const auto& p : world) grid.add(p);
+  grid.finalize();
+  Pose6 truth, guess;
+  truth << 0.3, -0.2, 0.05, 0.01, -0.015, 0.035;
+  guess << 0.15, -0.12, 0.02, 0.01, -0.012, 0.02;  // 17 cm and 0.9 deg off
+  const Eigen::Isometry3d T = core::to_isometry(truth);
+  // The error of the guess in the sensor frame; a point with lever l was undistorted with l
+  // times it missing.
+  const Eigen::Isometry3d err = core::to_isometry(guess).inverse() * T;
+  const Eigen::AngleAxisd aa(err.linear());
+  std::vector<Eigen::Vector3d> scan;
+  std::vector<double> lever;
+  for (std::size_t i = 0; i < world.size(); i += 3) {
+    const double l = static_cast<double>(i) / static_cast<double>(world.size());  // firing order
+    Eigen::Isometry3d part = Eigen::Isometry3d::Identity();
+    part.linear() = Eigen::AngleAxisd(l * aa.angle(), aa.axis()).toRotationMatrix();
+    part.translation() = l * err.translation();
+    scan.push_back(part.inverse() * (T.inverse() * world[i]));
+    lever.push_back(l);
+  }
+  const ScanMotion motion{guess, lever};
+  const NewtonOptions o;
+  const NewtonResult solved = newton_solve(grid, scan, guess, o, nullptr, nullptr, &motion);
+  const NewtonResult rigid = newton_solve(grid, scan, guess, o);
+  auto errors = [&](const Pose6& x) {
+    return std::pair((x.head<3>() - truth.head<3>()).norm(),
+                     (x.tail<3>() - truth.tail<3>()).norm());
+  };
+  const auto [st, sr] = errors(solved.pose);
+  const auto [rt, rr] = errors(rigid.pose);
+  std::printf("with the scan motion: %.4f m %.5f rad (%d iterations); rigid: %.4f m %.5f rad\n", st,
+              sr, solved.iterations, rt, rr);
+  EXPECT_TRUE(solved.converged);
+  EXPECT_LT(st, 0.01);
+  EXPECT_LT(sr, 0.001);
+  EXPECT_GT(rt, 3 * st);
 }
 
 TEST(ChiSquare, QuantilesMatchReferenceValues) {
