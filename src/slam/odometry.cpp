@@ -192,15 +192,17 @@ void ConsensusOdometry::deskew_all(const Eigen::Isometry3d& motion, double perio
   deskew(map_src_, motion, period_s, cv_points_);
 }
 
-void ConsensusOdometry::deskew_at(const Eigen::Isometry3d& pose) {
-  deskew_all(scale_motion(prev_pose_.inverse() * pose, to_period_), period_s_);
-  scan_motion_.base = core::to_pose6(pose);
+void ConsensusOdometry::deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base) {
+  deskew_all(motion, period_s_);
+  scan_motion_.base = base;
 }
 
-const ndt::ScanMotion* ConsensusOdometry::scan_motion() {
-  if (!solve_motion_) return nullptr;
-  scan_motion_.lever = std::span<const double>(lever_.data(), test_.size());
-  return &scan_motion_;
+void ConsensusOdometry::deskew_at(const Eigen::Isometry3d& pose) {
+  deskew_for(scale_motion(prev_pose_.inverse() * pose, to_period_), core::to_pose6(pose));
+}
+
+const ndt::ScanMotion* ConsensusOdometry::scan_motion() const {
+  return solve_motion_ ? &scan_motion_ : nullptr;
 }
 
 double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>& cv) {
@@ -356,8 +358,10 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   const double lever_origin = options_.deskew_to_mid_scan ? 0.5 : 0.0;
   lever_.clear();
   for (const TimedPoint& p : scan_src_) lever_.push_back((p.t / period - lever_origin) * to_period);
+  scan_motion_.lever = lever_;
+  const Eigen::Isometry3d predicted = prev_pose_ * motion;
   const Eigen::Isometry3d predicted_deskew = scale_motion(motion, to_period);  // over one period
-  deskew_all(predicted_deskew, period);
+  deskew_for(predicted_deskew, core::to_pose6(predicted));
   res.points = test_.size();
   if (!have_prev_) {
     res.flags |= kOdomFirstScan;
@@ -372,8 +376,6 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     have_prev_ = true;
     return res;
   }
-  const Eigen::Isometry3d predicted = prev_pose_ * motion;
-  scan_motion_.base = core::to_pose6(predicted);  // what test_ is deskewed for
   // Not while the newest reference scan is still undistorted (below).
   solve_motion_ = options_.deskew && period > 0.0 && !newest_unskewed_;
   std::optional<Eigen::Isometry3d> first_velocity;  // motion per period, from the first match
@@ -404,9 +406,8 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
           prev_pose_ = last_keyframe_pose_;
         }
         replace_newest(scratch_, last_keyframe_pose_);
-        deskew_all(estimated, period);
         x0 = core::to_pose6(prev_pose_ * scale_motion(estimated, dt / period));
-        scan_motion_.base = x0;
+        deskew_for(estimated, x0);
         solve_motion_ = options_.deskew;
         passes = std::max(passes, pass + 2);  // matched again even with no refinements
         continue;
@@ -430,8 +431,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     if (options_.max_acceleration > 0.0 && prediction_trusted_ &&
         (res.pose.translation() - predicted.translation()).norm() > max_jump) {
       res.flags |= kOdomRematched;
-      deskew_all(predicted_deskew, period);
-      scan_motion_.base = core::to_pose6(predicted);
+      deskew_for(predicted_deskew, core::to_pose6(predicted));
       converged = match(core::to_pose6(predicted), res);
     }
     if (!converged) res.flags |= kOdomNotConverged;

@@ -173,12 +173,14 @@ class ConsensusOdometry {
   void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion, double period_s,
               std::vector<Eigen::Vector3d>& out) const;
   void deskew_all(const Eigen::Isometry3d& motion, double period_s);  // test_ and cv_points_
-  // deskew_all with the motion `pose` implies (from prev_pose_ under constant velocity), which
-  // becomes the base of the scan motion the matches solve for.
+  // deskew_all over this scan's period with `motion`, which the pose `base` implies: the base
+  // of the scan motion the matches solve for.
+  void deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base);
+  // deskew_for with the motion `pose` implies (from prev_pose_ under constant velocity).
   void deskew_at(const Eigen::Isometry3d& pose);
-  // The scan's motion solved with its pose (ndt::ScanMotion) about the last deskew_at, or
+  // The scan's motion solved with its pose (ndt::ScanMotion) about the last deskew_for, or
   // nullptr when the scan is not deskewed.
-  const ndt::ScanMotion* scan_motion();
+  const ndt::ScanMotion* scan_motion() const;
   // Adds the current scan (cv_points_, placed at `pose`) to the reference when it is due.
   void update_reference(const Eigen::Isometry3d& pose);
   // Replaces the newest reference scan by `points` placed at `pose`.
@@ -205,7 +207,7 @@ class ConsensusOdometry {
   std::vector<TimedPoint> scan_src_;           // map_src_ at scan_cell
   std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
   std::vector<double> lever_;                  // per test_ point: its ndt::ScanMotion lever
-  ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for
+  ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for (deskew_for)
   bool solve_motion_ = false;                  // matches solve the scan's motion (deskew)
   double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
   std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
