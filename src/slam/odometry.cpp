@@ -6,6 +6,7 @@
 
 #include "cndt/core/mix64.hpp"
 #include "cndt/core/resident.hpp"
+#include "cndt/core/small_angle.hpp"
 
 namespace cndt::slam {
 namespace {
@@ -179,22 +180,23 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
       mid ? scale_motion(motion, 0.5).inverse() : Eigen::Isometry3d::Identity();
   for (const TimedPoint& p : in) {
     const double a = p.t * inv_period;
-    const double s = std::sin(a * angle), c1 = 1.0 - std::cos(a * angle);
+    double s = 0.0, c1 = 0.0;
+    core::sin_versine(a * angle, s, c1);
     const Eigen::Vector3d kxv = k.cross(p.p);
     const Eigen::Vector3d at_stamp = p.p + s * kxv + c1 * k.cross(kxv) + a * t;
     out.push_back(mid ? Eigen::Vector3d(to_mid * at_stamp) : at_stamp);
   }
 }
 
-void ConsensusOdometry::deskew_all(const Eigen::Isometry3d& motion, double period_s) {
-  deskewed_with_ = motion;
-  deskew(scan_src_, motion, period_s, test_);
-  deskew(map_src_, motion, period_s, cv_points_);
+void ConsensusOdometry::deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base) {
+  test_motion_ = motion;
+  deskew(scan_src_, motion, period_s_, test_);
+  scan_motion_.base = base;
 }
 
-void ConsensusOdometry::deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base) {
-  deskew_all(motion, period_s_);
-  scan_motion_.base = base;
+void ConsensusOdometry::deskew_scan(const Eigen::Isometry3d& motion) {
+  deskewed_with_ = motion;
+  deskew(map_src_, motion, period_s_, cv_points_);
 }
 
 void ConsensusOdometry::deskew_at(const Eigen::Isometry3d& pose) {
@@ -284,6 +286,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
     res.coarse_iterations += coarse.iterations;
     // The points as the coarse pose undistorts them: for Cv, and the base of the fine match.
     if (solve_motion_) deskew_at(core::to_isometry(coarse.pose));
+    deskew_scan(test_motion_);
     // Cv of every reference voxel at the coarse pose (eqs 8-9), then the cut at eta.
     consensus_at(coarse.pose, cv_);
     mask_.assign(grid_.size(), 1);
@@ -364,6 +367,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   deskew_for(predicted_deskew, core::to_pose6(predicted));
   res.points = test_.size();
   if (!have_prev_) {
+    deskew_scan(predicted_deskew);  // the identity: no motion is known yet
     res.flags |= kOdomFirstScan;
     res.pose = Eigen::Isometry3d::Identity();
     reference_due_ = true;  // at prev_pose_, set below
@@ -382,6 +386,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   if (test_.size() < options_.min_points) {
     res.flags |= kOdomTooFewPoints;
     res.pose = predicted;
+    deskew_scan(predicted_deskew);
   } else {
     core::Pose6 x0 = core::to_pose6(predicted);
     if (options_.guess_jitter_seed != 0) jitter(x0);
@@ -442,7 +447,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     }
     // The reference and Cm take the scan deskewed with the final estimate.
     const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
-    if (options_.deskew) deskew_all(scale_motion(estimated, to_period), period);
+    deskew_scan(scale_motion(estimated, to_period));
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
     // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
     // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.

@@ -172,10 +172,11 @@ class ConsensusOdometry {
   // mid-revolution, half of `motion` after the stamp.
   void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion, double period_s,
               std::vector<Eigen::Vector3d>& out) const;
-  void deskew_all(const Eigen::Isometry3d& motion, double period_s);  // test_ and cv_points_
-  // deskew_all over this scan's period with `motion`, which the pose `base` implies: the base
-  // of the scan motion the matches solve for.
+  // Deskews the points the matches use (test_) over this scan's period with `motion`, which the
+  // pose `base` implies: the base of the scan motion the matches solve for.
   void deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base);
+  // Deskews the map_cell points (cv_points_: Cv, Cm, the reference and the mapper) with `motion`.
+  void deskew_scan(const Eigen::Isometry3d& motion);
   // deskew_for with the motion `pose` implies (from prev_pose_ under constant velocity).
   void deskew_at(const Eigen::Isometry3d& pose);
   // The scan's motion solved with its pose (ndt::ScanMotion) about the last deskew_for, or
@@ -212,7 +213,8 @@ class ConsensusOdometry {
   double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
   std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
   std::vector<Eigen::Vector3d> stamp_points_;  // deskew_to_mid_scan: cv_points_ at the stamp
-  Eigen::Isometry3d deskewed_with_ = Eigen::Isometry3d::Identity();  // last deskew_all motion
+  Eigen::Isometry3d test_motion_ = Eigen::Isometry3d::Identity();    // last deskew_for motion
+  Eigen::Isometry3d deskewed_with_ = Eigen::Isometry3d::Identity();  // last deskew_scan motion
   // Reference scans in the odometry frame: a ring of up to local_map_scans entries, oldest
   // first, whose points lie one after the other in a circular buffer of local_map_points.
   std::span<const Eigen::Vector3d> history_points(const core::RingRegion& h) const {

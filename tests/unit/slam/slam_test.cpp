@@ -1,8 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
+#include "cndt/core/small_angle.hpp"
 #include "cndt/ndt/voxel_grid.hpp"
 #include "cndt/slam/downsample.hpp"
 #include "cndt/slam/odometry.hpp"
@@ -10,6 +12,35 @@
 
 namespace cndt::slam {
 namespace {
+
+// The deskew's sine and versine: within a few units in the last place of the library's values
+// over the polynomial's range (1 - cos x taken as 2 sin^2(x/2), which has no cancellation), and
+// the library's own values beyond it.
+TEST(SmallAngle, SineAndVersineEqualTheLibraryToRounding) {
+  constexpr double kUlp = 2.220446049250313e-16;
+  double worst_sin = 0.0, worst_versine = 0.0;
+  for (int i = -50000; i <= 50000; ++i) {
+    const double x = 0.5 * i / 50000.0;
+    double s = 0.0, v = 0.0;
+    core::sin_versine(x, s, v);
+    const double half = std::sin(0.5 * x);
+    const double ref_v = 2.0 * half * half;
+    if (x != 0.0)
+      worst_sin = std::max(worst_sin, std::abs(s - std::sin(x)) / std::abs(std::sin(x)));
+    if (x != 0.0) worst_versine = std::max(worst_versine, std::abs(v - ref_v) / ref_v);
+  }
+  EXPECT_LT(worst_sin, 2.0 * kUlp);
+  EXPECT_LT(worst_versine, 4.0 * kUlp);
+  for (double x : {0.5000001, -0.7, 1.0, 3.0, -6.0, 100.0}) {
+    double s = 0.0, v = 0.0;
+    core::sin_versine(x, s, v);
+    EXPECT_EQ(s, std::sin(x)) << x;
+    EXPECT_EQ(v, 1.0 - std::cos(x)) << x;
+  }
+  double s = 1.0, v = 1.0;
+  core::sin_versine(std::nan(""), s, v);
+  EXPECT_TRUE(std::isnan(s) && std::isnan(v));
+}
 
 TEST(Downsampler, OneCentroidPerCellAndABoundedOutput) {
   std::vector<Eigen::Vector3d> in = {
