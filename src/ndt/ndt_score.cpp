@@ -83,11 +83,18 @@ inline const Voxel* enabled_gaussian(const VoxelGrid& grid, std::int64_t idx, Vo
   return &vox;
 }
 
-// e = exp(-q^T A q / 2) for q = v - mu (eq 5's term without its sign), and a = A q.
+// Beyond this squared Mahalanobis distance a term is 0 to the precision of the sums: e < 1e-13,
+// and with the eigenvalue clamp bounding A, e a a^T < 1e-6 against Hessian entries of 1e3 and
+// more for a scan.
+constexpr double kFarSquared = 60.0;
+
+// e = exp(-q^T A q / 2) for q = v - mu (eq 5's term without its sign), and a = A q; e = 0
+// beyond kFarSquared, where the exponential is not evaluated.
 inline double gaussian_term(const Voxel& vox, const Eigen::Vector3d& v, Eigen::Vector3d& a) {
   const Eigen::Vector3d q = v - vox.mean;
   a = vox.inv_cov * q;
-  return std::exp(-0.5 * q.dot(a));
+  const double d2 = q.dot(a);
+  return d2 < kFarSquared ? std::exp(-0.5 * d2) : 0.0;
 }
 
 }  // namespace
@@ -201,7 +208,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
       r.score -= e;  // eq 5
       ++r.terms;
       any = true;
-      if (!derivatives) continue;
+      if (!derivatives || e == 0.0) continue;
       b += e * a;
       M.noalias() += e * (vox->inv_cov - a * a.transpose());
     }
