@@ -163,8 +163,8 @@ const std::vector<Field>& fields() {
       {"odometry", "max_acceleration_mps2", CNDT_REF(odometry.max_acceleration_mps2),
        "Largest acceleration of the vehicle. A match farther from the constant-velocity "
        "prediction than this allows over one time step (0.1 m at 10 m/s^2 and 10 Hz) is taken "
-       "for a wrong minimum and matched again from the prediction (0 = never; 10 was measured with "
-       "deskew_to_mid_scan).",
+       "for a wrong minimum and matched again from the prediction: a young reference can hold a "
+       "scan near zero motion (0 = never; docs/odometry.md).",
        "m/s^2", 0, 1000},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "

@@ -94,13 +94,12 @@ struct OdometryOptions {
   /// corridor's median ratio is about 0.0014; street, campus and loop drives have medians of
   /// 0.05-0.15.
   double degenerate_conditioning = 0.003;
-  /// Largest acceleration the platform can have, m/s^2 (0 = no check, the default; 10 with
-  /// deskew_to_mid_scan was measured, see docs/odometry.md). A match that lands
-  /// farther from the constant-velocity prediction than a dt^2 (0.1 m at 10 m/s^2 and 10 Hz)
-  /// has jumped to a wrong minimum (rings that move with the sensor hold a young reference near
-  /// zero motion): the scan is matched again from the prediction, without the pyramid, and
+  /// Largest acceleration the platform can have, m/s^2 (about 1 g; 0 = no check). A match that
+  /// lands farther from the constant-velocity prediction than a dt^2 (0.1 m at 10 m/s^2 and
+  /// 10 Hz) has jumped to a wrong minimum (rings that move with the sensor hold a young reference
+  /// near zero motion): the scan is matched again from the prediction, without the pyramid, and
   /// flagged kOdomRematched.
-  double max_acceleration = 0.0;
+  double max_acceleration = 10.0;
   /// For evaluation only (0, the default: off). Moves the initial guess of every scan's match by
   /// a pseudo-random amount of at most 0.5e-9 (m, rad) per coordinate drawn from this seed: a
   /// match that is well posed lands within its convergence tolerance of the same pose, so
