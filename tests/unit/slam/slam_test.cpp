@@ -25,9 +25,13 @@ TEST(SmallAngle, SineAndVersineEqualTheLibraryToRounding) {
     core::sin_versine(x, s, v);
     const double half = std::sin(0.5 * x);
     const double ref_v = 2.0 * half * half;
-    if (x != 0.0)
-      worst_sin = std::max(worst_sin, std::abs(s - std::sin(x)) / std::abs(std::sin(x)));
-    if (x != 0.0) worst_versine = std::max(worst_versine, std::abs(v - ref_v) / ref_v);
+    if (x == 0.0) {
+      EXPECT_EQ(s, 0.0);
+      EXPECT_EQ(v, 0.0);
+      continue;
+    }
+    worst_sin = std::max(worst_sin, std::abs(s - std::sin(x)) / std::abs(std::sin(x)));
+    worst_versine = std::max(worst_versine, std::abs(v - ref_v) / ref_v);
   }
   EXPECT_LT(worst_sin, 2.0 * kUlp);
   EXPECT_LT(worst_versine, 4.0 * kUlp);
