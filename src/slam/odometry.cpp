@@ -161,9 +161,9 @@ void ConsensusOdometry::jitter(core::Pose6& x) {
 }
 
 void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
-                               double period_s, std::vector<Eigen::Vector3d>& out) const {
+                               std::vector<Eigen::Vector3d>& out) const {
   out.clear();
-  if (!options_.deskew || period_s <= 0.0) {
+  if (!options_.deskew || period_s_ <= 0.0) {
     for (const TimedPoint& p : in) out.push_back(p.p);
     return;
   }
@@ -174,7 +174,7 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   const Eigen::Vector3d k = aa.axis();
   const double angle = aa.angle();
   const Eigen::Vector3d t = motion.translation();
-  const double inv_period = 1.0 / period_s;
+  const double inv_period = 1.0 / period_s_;
   const bool mid = options_.deskew_to_mid_scan;
   const Eigen::Isometry3d to_mid =
       mid ? scale_motion(motion, 0.5).inverse() : Eigen::Isometry3d::Identity();
@@ -190,17 +190,21 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
 
 void ConsensusOdometry::deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base) {
   test_motion_ = motion;
-  deskew(scan_src_, motion, period_s_, test_);
+  deskew(scan_src_, motion, test_);
   scan_motion_.base = base;
 }
 
 void ConsensusOdometry::deskew_scan(const Eigen::Isometry3d& motion) {
   deskewed_with_ = motion;
-  deskew(map_src_, motion, period_s_, cv_points_);
+  deskew(map_src_, motion, cv_points_);
+}
+
+Eigen::Isometry3d ConsensusOdometry::deskew_motion(const Eigen::Isometry3d& pose) const {
+  return scale_motion(prev_pose_.inverse() * pose, to_period_);
 }
 
 void ConsensusOdometry::deskew_at(const Eigen::Isometry3d& pose) {
-  deskew_for(scale_motion(prev_pose_.inverse() * pose, to_period_), core::to_pose6(pose));
+  deskew_for(deskew_motion(pose), core::to_pose6(pose));
 }
 
 const ndt::ScanMotion* ConsensusOdometry::scan_motion() const {
@@ -335,10 +339,9 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   // One scan period: the time between the last two stamps, or at the start this scan's own
   // span when it is a whole revolution.
   const double span = static_cast<double>((scan.end - scan.stamp).count()) * 1e-9;
-  const double period =
-      have_prev2_ ? prev_period_s_ : (scan.complete() && span > 0.01 ? span : 0.1);
+  period_s_ = have_prev2_ ? prev_period_s_ : (scan.complete() && span > 0.01 ? span : 0.1);
   const Eigen::Isometry3d motion =
-      have_prev2_ ? scale_motion(prev_motion_, dt / period) : Eigen::Isometry3d::Identity();
+      have_prev2_ ? scale_motion(prev_motion_, dt / period_s_) : Eigen::Isometry3d::Identity();
   // In range, then downsampled: map_cell for the reference and Cv, scan_cell for matching.
   raw_.clear();
   const double min2 = options_.min_range * options_.min_range;
@@ -353,17 +356,16 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   map_sampler_.run(raw_, map_src_);
   scan_sampler_.run(map_src_, scan_src_);
   // The deskew motion spans one scan period; `motion` spans dt.
-  const double to_period = period / std::max(dt, 1e-3);
-  period_s_ = period;
-  to_period_ = to_period;
+  to_period_ = period_s_ / std::max(dt, 1e-3);
   // A point fired t after the stamp moves t / dt times the pose's change with the undistortion
   // (measured from mid-revolution with deskew_to_mid_scan): its lever in the matches.
   const double lever_origin = options_.deskew_to_mid_scan ? 0.5 : 0.0;
   lever_.clear();
-  for (const TimedPoint& p : scan_src_) lever_.push_back((p.t / period - lever_origin) * to_period);
+  for (const TimedPoint& p : scan_src_)
+    lever_.push_back((p.t / period_s_ - lever_origin) * to_period_);
   scan_motion_.lever = lever_;
   const Eigen::Isometry3d predicted = prev_pose_ * motion;
-  const Eigen::Isometry3d predicted_deskew = scale_motion(motion, to_period);  // over one period
+  const Eigen::Isometry3d predicted_deskew = scale_motion(motion, to_period_);  // over one period
   deskew_for(predicted_deskew, core::to_pose6(predicted));
   res.points = test_.size();
   if (!have_prev_) {
@@ -381,7 +383,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     return res;
   }
   // Not while the newest reference scan is still undistorted (below).
-  solve_motion_ = options_.deskew && period > 0.0 && !newest_unskewed_;
+  solve_motion_ = options_.deskew && period_s_ > 0.0 && !newest_unskewed_;
   std::optional<Eigen::Isometry3d> first_velocity;  // motion per period, from the first match
   if (test_.size() < options_.min_points) {
     res.flags |= kOdomTooFewPoints;
@@ -404,14 +406,14 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
         // with it and match again from the pose it gives at this scan's stamp.
         newest_unskewed_ = false;
         first_velocity = estimated;
-        deskew(newest_src_, estimated, period, scratch_);
+        deskew(newest_src_, estimated, scratch_);
         // The first scan's pose at its stamp is the identity; at mid-revolution, half a period on.
         if (options_.deskew_to_mid_scan) {
           last_keyframe_pose_ = scale_motion(estimated, 0.5);
           prev_pose_ = last_keyframe_pose_;
         }
         replace_newest(scratch_, last_keyframe_pose_);
-        x0 = core::to_pose6(prev_pose_ * scale_motion(estimated, dt / period));
+        x0 = core::to_pose6(prev_pose_ * scale_motion(estimated, dt / period_s_));
         deskew_for(estimated, x0);
         solve_motion_ = options_.deskew;
         passes = std::max(passes, pass + 2);  // matched again even with no refinements
@@ -446,8 +448,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       res.flags |= kOdomNotConverged;
     }
     // The reference and Cm take the scan deskewed with the final estimate.
-    const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
-    deskew_scan(scale_motion(estimated, to_period));
+    deskew_scan(deskew_motion(res.pose));
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
     // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
     // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.
@@ -457,11 +458,11 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   // Past the first scan (returned above), so the motion between the last two scans is known.
   prev_motion_ = prev_pose_.inverse() * res.pose;
   prev_period_s_ = std::max(dt, 1e-3);
-  if (first_velocity && dt < 0.5 * period) {
+  if (first_velocity && dt < 0.5 * period_s_) {
     // A short partial first scan: a centimetre of error over a few hundredths of a second would
     // be a large velocity error. The first match measured the motion over a whole period.
     prev_motion_ = *first_velocity;
-    prev_period_s_ = period;
+    prev_period_s_ = period_s_;
   }
   // The next prediction is trusted when this scan's match was clean: a scan rematched, flagged
   // degenerate or not matched may carry a wrong motion, and gating on it would keep it.

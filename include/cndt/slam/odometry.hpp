@@ -166,17 +166,20 @@ class ConsensusOdometry {
   void reference_points(std::vector<Eigen::Vector3d>& out) const;
 
  private:
-  // Deskews `in` (sensor frame, timed) with `motion` over `period_s` into `out`: every point
-  // moved to where the sensor was at the scan stamp, or with deskew_to_mid_scan at
+  // Deskews `in` (sensor frame, timed) with `motion` over this scan's period into `out`: every
+  // point moved to where the sensor was at the scan stamp, or with deskew_to_mid_scan at
   // mid-revolution, half of `motion` after the stamp.
-  void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion, double period_s,
+  void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
               std::vector<Eigen::Vector3d>& out) const;
   // Deskews the points the matches use (test_) over this scan's period with `motion`, which the
   // pose `base` implies: the base of the scan motion the matches solve for.
   void deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base);
   // Deskews the map_cell points (cv_points_: Cv, Cm, the reference and the mapper) with `motion`.
   void deskew_scan(const Eigen::Isometry3d& motion);
-  // deskew_for with the motion `pose` implies (from prev_pose_ under constant velocity).
+  // The deskew motion over one period that `pose` implies (from prev_pose_ under constant
+  // velocity).
+  Eigen::Isometry3d deskew_motion(const Eigen::Isometry3d& pose) const;
+  // deskew_for with deskew_motion(pose).
   void deskew_at(const Eigen::Isometry3d& pose);
   // The scan's motion solved with its pose (ndt::ScanMotion) about the last deskew_for, or
   // nullptr when the scan is not deskewed.
