@@ -134,10 +134,6 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     mv = rel.translation();
     mw = aa.angle() * aa.axis();
   }
-  auto source = [&](std::size_t j) -> Eigen::Vector3d {
-    if (motion == nullptr) return points[j];
-    return points[j] + motion->lever[j] * (mv + mw.cross(points[j]));
-  };
   ScoreResult r;
   const int lookups = static_cast<int>(neighbours);
   bool cached = cache != nullptr;
@@ -165,12 +161,15 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   // of the voxels around it are fetched (when its voxel changed); kFind points ahead they are
   // looked up and the voxels fetched; then it is scored.
   constexpr std::size_t kPlace = 16, kFind = 8, kRing = kPlace + 1;  // i's entry outlives i + 16
-  std::array<Eigen::Vector3d, kRing> placed, moved;
+  std::array<Eigen::Vector3d, kRing> placed;
+  std::array<Eigen::Vector3d, kRing> moved;  // with a scan motion: the points it moves
   std::array<VoxelKey, kRing> keys;
   std::array<std::array<std::int32_t, 7>, kRing> local{};
   auto place = [&](std::size_t j) {
-    moved[j % kRing] = source(j);
-    const Eigen::Vector3d v = pd.transform(moved[j % kRing]);
+    if (motion != nullptr) {
+      moved[j % kRing] = points[j] + motion->lever[j] * (mv + mw.cross(points[j]));
+    }
+    const Eigen::Vector3d v = pd.transform(motion != nullptr ? moved[j % kRing] : points[j]);
     const VoxelKey key = grid.key_of(v);
     placed[j % kRing] = v;
     keys[j % kRing] = key;
@@ -190,7 +189,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   for (std::size_t j = 0; j < std::min(kPlace, points.size()); ++j) place(j);
   for (std::size_t j = 0; j < std::min(kFind, points.size()); ++j) find(j);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d p = moved[i % kRing];
+    const Eigen::Vector3d& p = motion != nullptr ? moved[i % kRing] : points[i];
     const Eigen::Vector3d v = placed[i % kRing];
     const std::int32_t* found = cached ? &cache->indices_[i * 7] : local[i % kRing].data();
     if (i + kPlace < points.size()) place(i + kPlace);
@@ -217,19 +216,14 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]
     Eigen::Matrix3d Jr;
     for (int k = 0; k < 3; ++k) Jr.col(k) = pd.d1(k) * p;
-    if (motion != nullptr) {
-      // The Jacobian is (1 + lever) J: the gradient takes b that many times, the Hessian's
-      // terms the square of it.
-      const double k = 1.0 + motion->lever[i];
-      b *= k;
-      g_t += b;
-      g_r.noalias() += Jr.transpose() * b;
-      b *= k;
-      M *= k * k;
-    } else {
-      g_t += b;
-      g_r.noalias() += Jr.transpose() * b;
-    }
+    // With a scan motion the Jacobian is (1 + lever) J: the gradient takes b that many times,
+    // the Hessian's terms the square of it.
+    const double scale = motion != nullptr ? 1.0 + motion->lever[i] : 1.0;
+    b *= scale;
+    g_t += b;
+    g_r.noalias() += Jr.transpose() * b;
+    b *= scale;
+    M *= scale * scale;
     h_tt += M;
     const Eigen::Matrix3d MJr = M * Jr;
     h_tr += MJr;
