@@ -152,9 +152,15 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   //   S -= sum e_v;  gradient += J^T b;  Hessian += J^T M J + b^T d2q/dx_k dx_l,
   // where b = sum e_v a_v and M = sum e_v (A_v - a_v a_v^T). Summing b and M over the voxels
   // first leaves one Jacobian product per point.
-  Eigen::Vector3d g_t = Eigen::Vector3d::Zero(), g_r = Eigen::Vector3d::Zero();
+  // The terms linear in b are sums of b^T D p for matrices D fixed by the pose (dR/dangle_k for
+  // the gradient, d2R/dangle_k dangle_l for the Hessian): b^T D p is the entrywise product of D
+  // with b p^T, so only the outer products are summed per point, Bg = sum b p^T with the
+  // gradient's b and Bh with the Hessian's (they differ by the scan motion's factor), and
+  // multiplied with the D at the end.
+  Eigen::Vector3d g_t = Eigen::Vector3d::Zero();
   Eigen::Matrix3d h_tt = Eigen::Matrix3d::Zero(), h_tr = Eigen::Matrix3d::Zero(),
-                  h_rr = Eigen::Matrix3d::Zero();
+                  h_rr = Eigen::Matrix3d::Zero(), Bg = Eigen::Matrix3d::Zero(),
+                  Bh = Eigen::Matrix3d::Zero();
   constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
   // The scoring reads voxels in random order from a grid far larger than the caches, so each
   // point goes through a short pipeline: kPlace points ahead it is placed and the table slots
@@ -218,26 +224,30 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     for (int k = 0; k < 3; ++k) Jr.col(k) = pd.d1(k) * p;
     // With a scan motion the Jacobian is (1 + lever) J: the gradient takes b that many times,
     // the Hessian's terms the square of it.
-    const double scale = motion != nullptr ? 1.0 + motion->lever[i] : 1.0;
-    b *= scale;
-    g_t += b;
-    g_r.noalias() += Jr.transpose() * b;
-    b *= scale;
-    M *= scale * scale;
+    if (motion != nullptr) {
+      const double scale = 1.0 + motion->lever[i];
+      b *= scale;
+      g_t += b;
+      Bg.noalias() += b * p.transpose();
+      b *= scale;
+      M *= scale * scale;
+      Bh.noalias() += b * p.transpose();
+    } else {
+      g_t += b;
+      Bg.noalias() += b * p.transpose();  // Bh is Bg
+    }
     h_tt += M;
     const Eigen::Matrix3d MJr = M * Jr;
     h_tr += MJr;
     h_rr.noalias() += Jr.transpose() * MJr;
-    const Eigen::Vector3d Rb0 = pd.d2(0).transpose() * b, Rb1 = pd.d2(1).transpose() * b,
-                          Rb2 = pd.d2(2).transpose() * b, Rb3 = pd.d2(3).transpose() * b,
-                          Rb4 = pd.d2(4).transpose() * b, Rb5 = pd.d2(5).transpose() * b;
-    const std::array<double, 6> s2 = {Rb0.dot(p), Rb1.dot(p), Rb2.dot(p),
-                                      Rb3.dot(p), Rb4.dot(p), Rb5.dot(p)};
-    for (int k = 0; k < 3; ++k) {
-      for (int l = 0; l < 3; ++l) h_rr(k, l) += s2[static_cast<std::size_t>(kPair[k][l])];
-    }
   }
   if (derivatives) {
+    if (motion == nullptr) Bh = Bg;
+    Eigen::Vector3d g_r;
+    for (int k = 0; k < 3; ++k) g_r(k) = pd.d1(k).cwiseProduct(Bg).sum();
+    for (int k = 0; k < 3; ++k) {
+      for (int l = 0; l < 3; ++l) h_rr(k, l) += pd.d2(kPair[k][l]).cwiseProduct(Bh).sum();
+    }
     r.gradient << g_t, g_r;
     r.hessian.topLeftCorner<3, 3>() = h_tt;
     r.hessian.topRightCorner<3, 3>() = h_tr;
