@@ -203,7 +203,7 @@ void VoxelGrid::derive(Voxel& v) const noexcept {
   Eigen::Matrix3d cov = v.sum_outer / n - m * m.transpose();  // eq 4, covariance
   cov = 0.5 * (cov + cov.transpose());
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-  es.compute(cov);
+  es.computeDirect(cov);  // closed form for 3 x 3
   Eigen::Vector3d ev = es.eigenvalues();
   if (options_.drop_horizontal_lines && ev(1) < 0.05 * ev(2) &&
       std::abs(es.eigenvectors().col(2).z()) < 0.5) {
