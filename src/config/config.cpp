@@ -166,6 +166,13 @@ const std::vector<Field>& fields() {
        "for a wrong minimum and matched again from the prediction: a young reference can hold a "
        "scan near zero motion (0 = never; docs/odometry.md).",
        "m/s^2", 0, 1000},
+      {"odometry", "prior_weight", CNDT_REF(odometry.prior_weight),
+       "Pull of every match towards the constant-velocity prediction's position, relative to "
+       "the scene's strongest constraint on the position (the largest eigenvalue of the NDT "
+       "Hessian's translation block). Applied after a clean match; along directions the scene "
+       "leaves nearly free (a bare street or corridor) the prediction decides instead of noise "
+       "(0 = off; docs/odometry.md).",
+       "", 0, 1},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
        "stays at the stamp). Halves RTE and RPE on 30 s simulated drives but drifts more on a "

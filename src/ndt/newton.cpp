@@ -31,7 +31,8 @@ double backtrack_length(double s0, double d0, double t, double st, double dt) {
 
 NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                           const core::Pose6& initial, const NewtonOptions& o, VoxelMask mask,
-                          LookupCache* cache, const ScanMotion* motion) {
+                          LookupCache* cache, const ScanMotion* motion,
+                          const PositionPrior* prior) {
   NewtonResult res;
   res.pose = initial;
   ScoreResult cur = ndt_score(grid, points, res.pose, true, mask, o.neighbours, cache, motion);
@@ -39,6 +40,27 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
   res.matched = cur.matched;
   res.hessian = cur.hessian;
   if (cur.matched == 0) return res;
+  // The objective minimised: S, plus the prior's term when there is one.
+  double w = 0.0;
+  if (prior != nullptr && prior->relative_weight > 0.0) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cur.hessian.topLeftCorner<3, 3>(),
+                                                            Eigen::EigenvaluesOnly);
+    w = prior->relative_weight * std::max(es.eigenvalues()(2), 0.0);
+  }
+  auto add_prior = [&](const core::Pose6& x, ScoreResult& s) {
+    if (w <= 0.0) return;
+    const Eigen::Vector3d d = x.head<3>() - prior->center.head<3>();
+    s.score += 0.5 * w * d.squaredNorm();
+    s.gradient.head<3>() += w * d;
+    s.hessian.topLeftCorner<3, 3>().diagonal().array() += w;
+  };
+  auto remove_prior = [&](const core::Pose6& x, ScoreResult& s) {
+    if (w <= 0.0) return;
+    const Eigen::Vector3d d = x.head<3>() - prior->center.head<3>();
+    s.score -= 0.5 * w * d.squaredNorm();
+    s.hessian.topLeftCorner<3, 3>().diagonal().array() -= w;
+  };
+  add_prior(res.pose, cur);
   for (int it = 0; it < o.max_iterations; ++it) {
     res.iterations = it + 1;
     // Newton direction on a positive definite Hessian: eigenvalues made positive and bounded
@@ -62,10 +84,12 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     double t = 1.0;
     core::Pose6 next = res.pose + step;
     ScoreResult trial = ndt_score(grid, points, next, true, mask, o.neighbours, cache, motion);
+    add_prior(next, trial);
     for (int k = 0; k < 10 && trial.score > cur.score + 1e-4 * t * slope; ++k) {
       t = backtrack_length(cur.score, slope, t, trial.score, trial.gradient.dot(step));
       next = res.pose + t * step;
       trial = ndt_score(grid, points, next, true, mask, o.neighbours, cache, motion);
+      add_prior(next, trial);
     }
     if (trial.score > cur.score) {
       res.converged = true;  // no step improves S: at the minimum to numerical precision
@@ -74,9 +98,11 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     const double change = std::abs(trial.score - cur.score) / std::max(1.0, std::abs(cur.score));
     res.pose = next;
     cur = trial;
-    res.score = cur.score;
-    res.matched = cur.matched;
-    res.hessian = cur.hessian;
+    ScoreResult own = cur;  // S's alone
+    remove_prior(next, own);
+    res.score = own.score;
+    res.matched = own.matched;
+    res.hessian = own.hessian;
     const bool small_step = t * tn * scale < o.translation_eps && t * rn * scale < o.rotation_eps;
     if (small_step || change < o.score_eps) {
       res.converged = true;

@@ -283,10 +283,11 @@ void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
 bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
   ndt::NewtonResult r;
   if (options_.mode == OdometryMode::kNaive) {
-    r = ndt::newton_solve(grid_, test_, x0, options_.naive, nullptr, &lookup_cache_, scan_motion());
+    r = ndt::newton_solve(grid_, test_, x0, options_.naive, nullptr, &lookup_cache_, scan_motion(),
+                          &prior_);
   } else {
     const ndt::NewtonResult coarse = ndt::newton_solve(grid_, test_, x0, options_.coarse, nullptr,
-                                                       &lookup_cache_, scan_motion());
+                                                       &lookup_cache_, scan_motion(), &prior_);
     res.coarse_iterations += coarse.iterations;
     // The points as the coarse pose undistorts them: for Cv, and the base of the fine match.
     if (solve_motion_) deskew_at(core::to_isometry(coarse.pose));
@@ -303,7 +304,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
       }
     }
     r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_, &lookup_cache_,
-                          scan_motion());
+                          scan_motion(), &prior_);
   }
   res.fine_iterations += r.iterations;
   res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
@@ -391,6 +392,8 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     deskew_scan(predicted_deskew);
   } else {
     core::Pose6 x0 = core::to_pose6(predicted);
+    prior_.center = x0;
+    prior_.relative_weight = prediction_trusted_ ? options_.prior_weight : 0.0;
     if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) x0 = search_start(x0);
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);

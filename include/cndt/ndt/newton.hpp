@@ -26,12 +26,24 @@ struct NewtonResult {
   Matrix6d hessian = Matrix6d::Zero();  ///< at the final pose
 };
 
+/// A weak pull of the position towards a predicted one, for the directions the scene leaves
+/// free: S(x) + w |t(x) - t(center)|^2 / 2, w = relative_weight times the largest eigenvalue of
+/// the translation block of S's Hessian at the start. Where the scene constrains the position
+/// it moves the minimum by about relative_weight times the prediction's error; along a
+/// direction it does not constrain (a corridor's or a bare street's axis) the solve keeps the
+/// prediction instead of sliding wherever rounding and noise push it.
+struct PositionPrior {
+  core::Pose6 center = core::Pose6::Zero();
+  double relative_weight = 0.0;
+};
+
 /// Minimises S(x) from `initial`. Never throws; a pose where no point matches returns
 /// converged = false with the initial pose. A cache saves voxel lookups between iterations.
-/// With `motion`, the scan's undistortion is solved with the pose (ScanMotion).
+/// With `motion`, the scan's undistortion is solved with the pose (ScanMotion); with `prior`,
+/// S plus the prior's term is minimised (NewtonResult::score and hessian are S's alone).
 NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                           const core::Pose6& initial, const NewtonOptions& options,
                           VoxelMask mask = nullptr, LookupCache* cache = nullptr,
-                          const ScanMotion* motion = nullptr);
+                          const ScanMotion* motion = nullptr, const PositionPrior* prior = nullptr);
 
 }  // namespace cndt::ndt

@@ -100,6 +100,12 @@ struct OdometryOptions {
   /// near zero motion): the scan is matched again from the prediction, without the pyramid, and
   /// flagged kOdomRematched.
   double max_acceleration = 10.0;
+  /// Weight of the pull of each match towards the constant-velocity prediction's position,
+  /// relative to the scene's strongest constraint on it (ndt::PositionPrior; 0 = none). Applied
+  /// when the prediction is trusted (the last scan matched cleanly). At the default, equal to
+  /// degenerate_conditioning, the prediction outweighs the scene along exactly the directions
+  /// a degenerate scan leaves free.
+  double prior_weight = 0.003;
   /// For evaluation only (0, the default: off). Moves the initial guess of every scan's match by
   /// a pseudo-random amount of at most 0.5e-9 (m, rad) per coordinate drawn from this seed: a
   /// match that is well posed lands within its convergence tolerance of the same pose, so
@@ -245,6 +251,7 @@ class ConsensusOdometry {
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;
+  ndt::PositionPrior prior_;  // the matches' pull towards this scan's prediction
   // guess_jitter_seed's generator: the next counter value for core::mix64.
   std::uint64_t jitter_state_ = 0;
   std::chrono::nanoseconds prev_stamp_{0};

@@ -345,6 +345,80 @@ TEST(Newton, RecoversAKnownMotionOfAStructuredScene) {
   EXPECT_LE(r.iterations, 30);
 }
 
+TEST(Newton, PositionPriorHoldsWhatTheSceneLeavesFreeAndLittleElse) {
+  // A corridor: floor and two walls, nothing along x. Points drawn uniformly on each surface,
+  // for the reference and the scan apart (a lattice of them, or the same points in both, would
+  // itself fix x). Along x the score has only the ripples of the random Gaussians, and the
+  // match slides on them; a prior that outweighs them holds x at the prediction while y, z
+  // and the rotation are solved. (At the odometry's default weight, 0.003, it does not outweigh
+  // them here: this scene's floor and walls are 1 cm thin, so the largest eigenvalue the weight
+  // is relative to is thousands of times the free direction's ripples.)
+  std::mt19937 rng(5);
+  auto corridor_points = [&rng](int per_surface) {
+    std::normal_distribution<double> n(0.0, 0.01);
+    std::uniform_real_distribution<double> along(-15.0, 15.0), across(-2.0, 2.0), up(-1.8, 1.0);
+    std::vector<Eigen::Vector3d> pts;
+    for (int i = 0; i < per_surface; ++i) {
+      pts.emplace_back(along(rng), across(rng), -1.8 + n(rng));
+      pts.emplace_back(along(rng), 2.0 + n(rng), up(rng));
+      pts.emplace_back(along(rng), -2.0 + n(rng), up(rng));
+    }
+    return pts;
+  };
+  Pose6 truth;
+  truth << 0.4, -0.1, 0.03, 0.005, -0.01, 0.02;
+  auto scan_of = [&](const std::vector<Eigen::Vector3d>& world, double reach) {
+    const Eigen::Isometry3d T = core::to_isometry(truth);
+    std::vector<Eigen::Vector3d> scan;
+    for (std::size_t i = 0; i < world.size(); i += 3) {
+      const Eigen::Vector3d p = T.inverse() * world[i];
+      if (p.head<2>().norm() < reach) scan.push_back(p);
+    }
+    return scan;
+  };
+  VoxelGrid tube({0.5, 200'000, 5, 0.001});
+  for (const auto& p : corridor_points(12'000)) tube.add(p);
+  tube.finalize();
+  const std::vector<Eigen::Vector3d> tube_scan = scan_of(corridor_points(12'000), 10.0);
+  PositionPrior prior;
+  prior.center << 0.25, 0.0, 0.0, 0.0, 0.0, 0.0;  // predicted 0.15 m short along the axis
+  const NewtonResult slid = newton_solve(tube, tube_scan, prior.center, NewtonOptions{});
+  prior.relative_weight = 0.1;
+  const NewtonResult held = newton_solve(tube, tube_scan, prior.center, NewtonOptions{}, nullptr,
+                                         nullptr, nullptr, &prior);
+  std::printf(
+      "corridor (truth x 0.4, prediction 0.25): without the prior x %.4f; with it x %.4f, "
+      "y %.4f (truth -0.1), z %.4f (0.03), rotation error %.5f rad\n",
+      slid.pose(0), held.pose(0), held.pose(1), held.pose(2),
+      (held.pose.tail<3>() - truth.tail<3>()).norm());
+  EXPECT_NEAR(held.pose(0), 0.25, 0.03);
+  EXPECT_NEAR(held.pose(1), truth(1), 0.02);
+  EXPECT_NEAR(held.pose(2), truth(2), 0.01);
+  EXPECT_LT((held.pose.tail<3>() - truth.tail<3>()).norm(), 0.01);
+
+  // A scene that fixes every direction: a prediction 5 cm off moves the solution by little.
+  const std::vector<Eigen::Vector3d> world = structured_world(3);
+  VoxelGrid grid({0.5, 200'000, 5, 0.001});
+  for (const auto& p : world) grid.add(p);
+  grid.finalize();
+  const std::vector<Eigen::Vector3d> scan = scan_of(world, 1e9);
+  prior.center = truth;
+  prior.center.head<3>() += Eigen::Vector3d(0.03, -0.03, 0.03);
+  prior.relative_weight = 0.003;  // the odometry's default
+  const NewtonResult free = newton_solve(grid, scan, Pose6::Zero(), NewtonOptions{});
+  const NewtonResult pulled =
+      newton_solve(grid, scan, Pose6::Zero(), NewtonOptions{}, nullptr, nullptr, nullptr, &prior);
+  const double moved = (pulled.pose.head<3>() - free.pose.head<3>()).norm();
+  std::printf("structured scene: the prior moved the solution by %.5f m\n", moved);
+  EXPECT_TRUE(pulled.converged);
+  EXPECT_LT(moved, 0.002);
+  EXPECT_LT((pulled.pose.head<3>() - truth.head<3>()).norm(), 0.01);
+  // The score and Hessian reported are S's alone: equal to a fresh scoring at the pose.
+  const ScoreResult at = ndt_score(grid, scan, pulled.pose, true, nullptr, Neighbours::kSeven);
+  EXPECT_NEAR(pulled.score, at.score, 1e-9 * std::abs(at.score));
+  EXPECT_LT((pulled.hessian - at.hessian).norm(), 1e-9 * at.hessian.norm());
+}
+
 // The scan's motion solved with the pose: at the base the points are where they were given and
 // the gradient is that of S with the points moving with the pose (finite differences).
 TEST(ScanMotion, GradientEqualsFiniteDifferencesAtTheBase) {
