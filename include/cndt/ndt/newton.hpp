@@ -30,8 +30,9 @@ struct NewtonResult {
 /// free: S(x) + w |t(x) - t(center)|^2 / 2, w = relative_weight times the largest eigenvalue of
 /// the translation block of S's Hessian at the start. Where the scene constrains the position
 /// it moves the minimum by about relative_weight times the prediction's error; along a
-/// direction it does not constrain (a corridor's or a bare street's axis) the solve keeps the
-/// prediction instead of sliding wherever rounding and noise push it.
+/// direction it barely constrains (a corridor's or a bare street's axis) the pull's curvature
+/// can exceed the score's, and the solve stays nearer the prediction instead of sliding on the
+/// score's ripples.
 struct PositionPrior {
   core::Pose6 center = core::Pose6::Zero();
   double relative_weight = 0.0;

@@ -103,8 +103,8 @@ struct OdometryOptions {
   /// Weight of the pull of each match towards the constant-velocity prediction's position,
   /// relative to the scene's strongest constraint on it (ndt::PositionPrior; 0 = none). Applied
   /// when the prediction is trusted (the last scan matched cleanly). At the default, equal to
-  /// degenerate_conditioning, the prediction outweighs the scene along exactly the directions
-  /// a degenerate scan leaves free.
+  /// degenerate_conditioning, the pull's curvature equals the scene's along a direction at the
+  /// degeneracy threshold and exceeds it below.
   double prior_weight = 0.003;
   /// For evaluation only (0, the default: off). Moves the initial guess of every scan's match by
   /// a pseudo-random amount of at most 0.5e-9 (m, rad) per coordinate drawn from this seed: a
