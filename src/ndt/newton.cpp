@@ -40,69 +40,74 @@ NewtonResult newton_solve(const VoxelGrid& grid, std::span<const Eigen::Vector3d
   res.matched = cur.matched;
   res.hessian = cur.hessian;
   if (cur.matched == 0) return res;
-  // The objective minimised: S, plus the prior's term when there is one.
+  // The objective minimised: S, plus the prior's w |t - t_prior|^2 / 2 when there is one. The
+  // scorings stay S's own (the result reports them); the prior's terms are added where the
+  // solver reads the objective.
   double w = 0.0;
   if (prior != nullptr && prior->relative_weight > 0.0) {
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cur.hessian.topLeftCorner<3, 3>(),
                                                             Eigen::EigenvaluesOnly);
     w = prior->relative_weight * std::max(es.eigenvalues()(2), 0.0);
   }
-  auto add_prior = [&](const core::Pose6& x, ScoreResult& s) {
-    if (w <= 0.0) return;
-    const Eigen::Vector3d d = x.head<3>() - prior->center.head<3>();
-    s.score += 0.5 * w * d.squaredNorm();
-    s.gradient.head<3>() += w * d;
-    s.hessian.topLeftCorner<3, 3>().diagonal().array() += w;
+  struct Objective {
+    double value;
+    Vector6d gradient;
   };
-  auto remove_prior = [&](const core::Pose6& x, ScoreResult& s) {
-    if (w <= 0.0) return;
-    const Eigen::Vector3d d = x.head<3>() - prior->center.head<3>();
-    s.score -= 0.5 * w * d.squaredNorm();
-    s.hessian.topLeftCorner<3, 3>().diagonal().array() -= w;
+  auto objective = [&](const ScoreResult& s, const core::Pose6& x) {
+    Objective f{s.score, s.gradient};
+    if (w > 0.0) {
+      const Eigen::Vector3d d = x.head<3>() - prior->center.head<3>();
+      f.value += 0.5 * w * d.squaredNorm();
+      f.gradient.head<3>() += w * d;
+    }
+    return f;
   };
-  add_prior(res.pose, cur);
+  Objective f_cur = objective(cur, res.pose);
   for (int it = 0; it < o.max_iterations; ++it) {
     res.iterations = it + 1;
     // Newton direction on a positive definite Hessian: eigenvalues made positive and bounded
     // below, so that a saddle or a ridge still gives a descent direction.
-    Eigen::SelfAdjointEigenSolver<Matrix6d> es(0.5 * (cur.hessian + cur.hessian.transpose()));
+    Matrix6d hessian = 0.5 * (cur.hessian + cur.hessian.transpose());
+    hessian.topLeftCorner<3, 3>().diagonal().array() += w;  // the prior's
+    Eigen::SelfAdjointEigenSolver<Matrix6d> es(hessian);
     Vector6d ev = es.eigenvalues().cwiseAbs();
     const double floor = std::max(ev.maxCoeff() * 1e-6, 1e-9);
     ev = ev.cwiseMax(floor);
     Vector6d step = -(es.eigenvectors() * ev.cwiseInverse().asDiagonal() *
-                      es.eigenvectors().transpose() * cur.gradient);
+                      es.eigenvectors().transpose() * f_cur.gradient);
     const double tn = step.head<3>().norm(), rn = step.tail<3>().norm();
     const double scale = std::min({1.0, o.max_translation_step / std::max(tn, 1e-12),
                                    o.max_rotation_step / std::max(rn, 1e-12)});
     step *= scale;
-    // Backtracking line search (Armijo) on S. The full step is usually accepted, so its trial
-    // carries the derivatives the next iteration needs. A rejected trial's slope along the step
-    // places the next one at the minimum of the cubic through both ends (backtrack_length).
-    // On NDT's thin planes a quarter of the steps overshoot, and halving took two trials to
-    // place each of them; the cubic takes fewer and lands nearer the minimum along the step.
-    const double slope = cur.gradient.dot(step);
+    // Backtracking line search (Armijo) on the objective. The full step is usually accepted, so
+    // its trial carries the derivatives the next iteration needs. A rejected trial's slope along
+    // the step places the next one at the minimum of the cubic through both ends
+    // (backtrack_length). On NDT's thin planes a quarter of the steps overshoot, and halving
+    // took two trials to place each of them; the cubic takes fewer and lands nearer the minimum
+    // along the step.
+    const double slope = f_cur.gradient.dot(step);
     double t = 1.0;
     core::Pose6 next = res.pose + step;
     ScoreResult trial = ndt_score(grid, points, next, true, mask, o.neighbours, cache, motion);
-    add_prior(next, trial);
-    for (int k = 0; k < 10 && trial.score > cur.score + 1e-4 * t * slope; ++k) {
-      t = backtrack_length(cur.score, slope, t, trial.score, trial.gradient.dot(step));
+    Objective f_trial = objective(trial, next);
+    for (int k = 0; k < 10 && f_trial.value > f_cur.value + 1e-4 * t * slope; ++k) {
+      t = backtrack_length(f_cur.value, slope, t, f_trial.value, f_trial.gradient.dot(step));
       next = res.pose + t * step;
       trial = ndt_score(grid, points, next, true, mask, o.neighbours, cache, motion);
-      add_prior(next, trial);
+      f_trial = objective(trial, next);
     }
-    if (trial.score > cur.score) {
+    if (f_trial.value > f_cur.value) {
       res.converged = true;  // no step improves S: at the minimum to numerical precision
       break;
     }
-    const double change = std::abs(trial.score - cur.score) / std::max(1.0, std::abs(cur.score));
+    const double change =
+        std::abs(f_trial.value - f_cur.value) / std::max(1.0, std::abs(f_cur.value));
     res.pose = next;
     cur = trial;
-    ScoreResult own = cur;  // S's alone
-    remove_prior(next, own);
-    res.score = own.score;
-    res.matched = own.matched;
-    res.hessian = own.hessian;
+    f_cur = f_trial;
+    res.score = cur.score;
+    res.matched = cur.matched;
+    res.hessian = cur.hessian;
     const bool small_step = t * tn * scale < o.translation_eps && t * rn * scale < o.rotation_eps;
     if (small_step || change < o.score_eps) {
       res.converged = true;
