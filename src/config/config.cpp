@@ -252,6 +252,12 @@ const std::vector<Field>& fields() {
        "Nice value of the mapper thread (higher = lower priority).", "", 0, 19},
       {"runtime", "mapper_cpu", CNDT_REF(runtime.mapper_cpu),
        "CPU the mapper thread is pinned to (-1 = any).", "", -1, 1023},
+      {"runtime", "scoring_threads", CNDT_REF(runtime.scoring_threads),
+       "Threads that score each scan against the reference: the odometry thread and "
+       "scoring_threads - 1 helpers (SCHED_FIFO like the odometry thread with realtime = true, "
+       "not pinned). Lowers the latency on a multi-core computer; the poses are the same for "
+       "every value.",
+       "threads", 1, 16},
       {"runtime", "status_interval_s", CNDT_REF(runtime.status_interval_s),
        "Seconds between health lines in the log (and STATUS= updates for systemd).", "s", 0.5,
        3600},

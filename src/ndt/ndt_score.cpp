@@ -121,6 +121,147 @@ double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours n
   return score;
 }
 
+namespace {
+
+// One chunk's share of a scoring: ndt_score's sums over the chunk's points. Aligned so that two
+// chunks' results never share a cache line.
+struct alignas(64) Partial {
+  double score = 0.0;
+  std::size_t terms = 0, matched = 0;
+  Eigen::Vector3d g_t = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d h_tt = Eigen::Matrix3d::Zero(), h_tr = Eigen::Matrix3d::Zero(),
+                  h_rr = Eigen::Matrix3d::Zero(), Bg = Eigen::Matrix3d::Zero(),
+                  Bh = Eigen::Matrix3d::Zero();
+};
+
+// What every chunk of one scoring reads. `cache` is null when the scoring goes without one.
+struct ScoreJob {
+  const VoxelGrid* grid;
+  std::span<const Eigen::Vector3d> points;
+  const PoseDerivatives* pd;
+  Eigen::Vector3d mv, mw;
+  bool derivatives;
+  VoxelMask mask;
+  int lookups;
+  std::vector<VoxelKey>* cache_keys;  // the cache's entries, or null
+  std::vector<std::int32_t>* cache_indices;
+  const ScanMotion* motion;
+  std::array<Partial, kScoreChunks>* partials;
+};
+
+// Points [begin, end) of the job, summed into `out` (a local of the thread that runs it). Chunks
+// write disjoint cache entries (by point index), so they may run at the same time.
+void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partial& out) {
+  std::vector<VoxelKey>* cache_keys = job.cache_keys;
+  std::vector<std::int32_t>* cache_indices = job.cache_indices;
+  const VoxelGrid& grid = *job.grid;
+  const std::span<const Eigen::Vector3d> points = job.points;
+  const PoseDerivatives& pd = *job.pd;
+  const ScanMotion* motion = job.motion;
+  const int lookups = job.lookups;
+  const bool cached = cache_keys != nullptr;
+  // With e_v = exp(-q_v^T A_v q_v / 2) and a_v = A_v q_v for each voxel v a point is scored
+  // against, the point adds (eq 5 and its derivatives, J = dq/dx, the same for every v):
+  //   S -= sum e_v;  gradient += J^T b;  Hessian += J^T M J + b^T d2q/dx_k dx_l,
+  // where b = sum e_v a_v and M = sum e_v (A_v - a_v a_v^T). Summing b and M over the voxels
+  // first leaves one Jacobian product per point.
+  // The terms linear in b are sums of b^T D p for matrices D fixed by the pose (dR/dangle_k for
+  // the gradient, d2R/dangle_k dangle_l for the Hessian): b^T D p is the entrywise product of D
+  // with b p^T, so only the outer products are summed per point, Bg = sum b p^T with the
+  // gradient's b and Bh with the Hessian's (they differ by the scan motion's factor), and
+  // multiplied with the D at the end.
+  // The scoring reads voxels in random order from a grid far larger than the caches, so each
+  // point goes through a short pipeline: kPlace points ahead it is placed and the table slots
+  // of the voxels around it are fetched (when its voxel changed); kFind points ahead they are
+  // looked up and the voxels fetched; then it is scored.
+  constexpr std::size_t kPlace = 16, kFind = 8, kRing = kPlace + 1;  // i's entry outlives i + 16
+  std::array<Eigen::Vector3d, kRing> placed;
+  std::array<Eigen::Vector3d, kRing> moved;  // with a scan motion: the points it moves
+  std::array<VoxelKey, kRing> keys;
+  std::array<std::array<std::int32_t, 7>, kRing> local{};
+  auto place = [&](std::size_t j) {
+    if (motion != nullptr) {
+      moved[j % kRing] = points[j] + motion->lever[j] * (job.mv + job.mw.cross(points[j]));
+    }
+    const Eigen::Vector3d v = pd.transform(motion != nullptr ? moved[j % kRing] : points[j]);
+    const VoxelKey key = grid.key_of(v);
+    placed[j % kRing] = v;
+    keys[j % kRing] = key;
+    if (!cached || !((*cache_keys)[j] == key)) grid.prefetch_around(key, lookups);
+  };
+  auto find = [&](std::size_t j) {
+    const VoxelKey& key = keys[j % kRing];
+    std::int32_t* found = cached ? &(*cache_indices)[j * 7] : local[j % kRing].data();
+    if (!cached || !((*cache_keys)[j] == key)) {  // not the voxel this point was in last time
+      if (cached) (*cache_keys)[j] = key;
+      grid.indices_around(key, lookups, found);
+    }
+    for (int n = 0; n < lookups; ++n) {
+      if (found[n] >= 0) grid.prefetch_gaussian(found[n]);
+    }
+  };
+  for (std::size_t j = begin; j < std::min(begin + kPlace, end); ++j) place(j);
+  for (std::size_t j = begin; j < std::min(begin + kFind, end); ++j) find(j);
+  for (std::size_t i = begin; i < end; ++i) {
+    const Eigen::Vector3d& p = motion != nullptr ? moved[i % kRing] : points[i];
+    const Eigen::Vector3d v = placed[i % kRing];
+    const std::int32_t* found = cached ? &(*cache_indices)[i * 7] : local[i % kRing].data();
+    if (i + kPlace < end) place(i + kPlace);
+    if (i + kFind < end) find(i + kFind);
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    bool any = false;
+    for (int n = 0; n < lookups; ++n) {
+      const std::int32_t idx = found[n];
+      if (idx < 0) continue;
+      const Voxel* vox = enabled_gaussian(grid, idx, job.mask);
+      if (vox == nullptr) continue;
+      Eigen::Vector3d a;
+      const double e = gaussian_term(*vox, v, a);
+      out.score -= e;  // eq 5
+      ++out.terms;
+      any = true;
+      if (!job.derivatives || e == 0.0) continue;
+      b += e * a;
+      M.noalias() += e * (vox->inv_cov - a * a.transpose());
+    }
+    if (any) ++out.matched;
+    if (!job.derivatives || !any) continue;
+    // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]
+    Eigen::Matrix3d Jr;
+    for (int k = 0; k < 3; ++k) Jr.col(k) = pd.d1(k) * p;
+    // With a scan motion the Jacobian is (1 + lever) J: the gradient takes b that many times,
+    // the Hessian's terms the square of it.
+    if (motion != nullptr) {
+      const double scale = 1.0 + motion->lever[i];
+      b *= scale;
+      out.g_t += b;
+      out.Bg.noalias() += b * p.transpose();
+      b *= scale;
+      M *= scale * scale;
+      out.Bh.noalias() += b * p.transpose();
+    } else {
+      out.g_t += b;
+      out.Bg.noalias() += b * p.transpose();  // Bh is Bg
+    }
+    out.h_tt += M;
+    const Eigen::Matrix3d MJr = M * Jr;
+    out.h_tr += MJr;
+    out.h_rr.noalias() += Jr.transpose() * MJr;
+  }
+}
+
+// TaskRunner's task: chunk `chunk` of the ScoreJob at `context`.
+void score_chunk(void* context, std::size_t chunk) {
+  const ScoreJob& job = *static_cast<ScoreJob*>(context);
+  const std::size_t n = job.points.size();
+  Partial sums;
+  score_range(job, n * chunk / kScoreChunks, n * (chunk + 1) / kScoreChunks, sums);
+  (*job.partials)[chunk] = sums;
+}
+
+}  // namespace
+
 ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                       const core::Pose6& x, bool derivatives, VoxelMask mask, Neighbours neighbours,
                       LookupCache* cache, const ScanMotion* motion) {
@@ -134,7 +275,6 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     mv = rel.translation();
     mw = aa.angle() * aa.axis();
   }
-  ScoreResult r;
   const int lookups = static_cast<int>(neighbours);
   bool cached = cache != nullptr;
   if (cached && (cache->grid_ != &grid || cache->version_ != grid.version() ||
@@ -147,112 +287,55 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
       cache->lookups_ = lookups;
     }
   }
-  // With e_v = exp(-q_v^T A_v q_v / 2) and a_v = A_v q_v for each voxel v a point is scored
-  // against, the point adds (eq 5 and its derivatives, J = dq/dx, the same for every v):
-  //   S -= sum e_v;  gradient += J^T b;  Hessian += J^T M J + b^T d2q/dx_k dx_l,
-  // where b = sum e_v a_v and M = sum e_v (A_v - a_v a_v^T). Summing b and M over the voxels
-  // first leaves one Jacobian product per point.
-  // The terms linear in b are sums of b^T D p for matrices D fixed by the pose (dR/dangle_k for
-  // the gradient, d2R/dangle_k dangle_l for the Hessian): b^T D p is the entrywise product of D
-  // with b p^T, so only the outer products are summed per point, Bg = sum b p^T with the
-  // gradient's b and Bh with the Hessian's (they differ by the scan motion's factor), and
-  // multiplied with the D at the end.
-  Eigen::Vector3d g_t = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d h_tt = Eigen::Matrix3d::Zero(), h_tr = Eigen::Matrix3d::Zero(),
-                  h_rr = Eigen::Matrix3d::Zero(), Bg = Eigen::Matrix3d::Zero(),
-                  Bh = Eigen::Matrix3d::Zero();
-  constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
-  // The scoring reads voxels in random order from a grid far larger than the caches, so each
-  // point goes through a short pipeline: kPlace points ahead it is placed and the table slots
-  // of the voxels around it are fetched (when its voxel changed); kFind points ahead they are
-  // looked up and the voxels fetched; then it is scored.
-  constexpr std::size_t kPlace = 16, kFind = 8, kRing = kPlace + 1;  // i's entry outlives i + 16
-  std::array<Eigen::Vector3d, kRing> placed;
-  std::array<Eigen::Vector3d, kRing> moved;  // with a scan motion: the points it moves
-  std::array<VoxelKey, kRing> keys;
-  std::array<std::array<std::int32_t, 7>, kRing> local{};
-  auto place = [&](std::size_t j) {
-    if (motion != nullptr) {
-      moved[j % kRing] = points[j] + motion->lever[j] * (mv + mw.cross(points[j]));
-    }
-    const Eigen::Vector3d v = pd.transform(motion != nullptr ? moved[j % kRing] : points[j]);
-    const VoxelKey key = grid.key_of(v);
-    placed[j % kRing] = v;
-    keys[j % kRing] = key;
-    if (!cached || !(cache->keys_[j] == key)) grid.prefetch_around(key, lookups);
-  };
-  auto find = [&](std::size_t j) {
-    const VoxelKey& key = keys[j % kRing];
-    std::int32_t* found = cached ? &cache->indices_[j * 7] : local[j % kRing].data();
-    if (!cached || !(cache->keys_[j] == key)) {  // not the voxel this point was in last time
-      if (cached) cache->keys_[j] = key;
-      grid.indices_around(key, lookups, found);
-    }
-    for (int n = 0; n < lookups; ++n) {
-      if (found[n] >= 0) grid.prefetch_gaussian(found[n]);
-    }
-  };
-  for (std::size_t j = 0; j < std::min(kPlace, points.size()); ++j) place(j);
-  for (std::size_t j = 0; j < std::min(kFind, points.size()); ++j) find(j);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d& p = motion != nullptr ? moved[i % kRing] : points[i];
-    const Eigen::Vector3d v = placed[i % kRing];
-    const std::int32_t* found = cached ? &cache->indices_[i * 7] : local[i % kRing].data();
-    if (i + kPlace < points.size()) place(i + kPlace);
-    if (i + kFind < points.size()) find(i + kFind);
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-    bool any = false;
-    for (int n = 0; n < lookups; ++n) {
-      const std::int32_t idx = found[n];
-      if (idx < 0) continue;
-      const Voxel* vox = enabled_gaussian(grid, idx, mask);
-      if (vox == nullptr) continue;
-      Eigen::Vector3d a;
-      const double e = gaussian_term(*vox, v, a);
-      r.score -= e;  // eq 5
-      ++r.terms;
-      any = true;
-      if (!derivatives || e == 0.0) continue;
-      b += e * a;
-      M.noalias() += e * (vox->inv_cov - a * a.transpose());
-    }
-    if (any) ++r.matched;
-    if (!derivatives || !any) continue;
-    // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]
-    Eigen::Matrix3d Jr;
-    for (int k = 0; k < 3; ++k) Jr.col(k) = pd.d1(k) * p;
-    // With a scan motion the Jacobian is (1 + lever) J: the gradient takes b that many times,
-    // the Hessian's terms the square of it.
-    if (motion != nullptr) {
-      const double scale = 1.0 + motion->lever[i];
-      b *= scale;
-      g_t += b;
-      Bg.noalias() += b * p.transpose();
-      b *= scale;
-      M *= scale * scale;
-      Bh.noalias() += b * p.transpose();
-    } else {
-      g_t += b;
-      Bg.noalias() += b * p.transpose();  // Bh is Bg
-    }
-    h_tt += M;
-    const Eigen::Matrix3d MJr = M * Jr;
-    h_tr += MJr;
-    h_rr.noalias() += Jr.transpose() * MJr;
+  // The points go in kScoreChunks fixed chunks whose sums are added in chunk order, so the
+  // result is the same whether the chunks run one after the other or on several threads.
+  std::array<Partial, kScoreChunks> partials;
+  ScoreJob job{&grid,
+               points,
+               &pd,
+               mv,
+               mw,
+               derivatives,
+               mask,
+               lookups,
+               cached ? &cache->keys_ : nullptr,
+               cached ? &cache->indices_ : nullptr,
+               motion,
+               &partials};
+  TaskRunner* runner = cache != nullptr ? cache->runner_ : nullptr;
+  if (runner != nullptr && points.size() >= kParallelMinPoints) {
+    runner->run(kScoreChunks, &score_chunk, &job);
+  } else {
+    for (std::size_t c = 0; c < kScoreChunks; ++c) score_chunk(&job, c);
+  }
+  ScoreResult r;
+  Partial sum;
+  for (const Partial& p : partials) {
+    r.score += p.score;
+    r.terms += p.terms;
+    r.matched += p.matched;
+    sum.g_t += p.g_t;
+    sum.h_tt += p.h_tt;
+    sum.h_tr += p.h_tr;
+    sum.h_rr += p.h_rr;
+    sum.Bg += p.Bg;
+    sum.Bh += p.Bh;
   }
   if (derivatives) {
-    if (motion == nullptr) Bh = Bg;
+    constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+    if (motion == nullptr) sum.Bh = sum.Bg;
     Eigen::Vector3d g_r;
-    for (int k = 0; k < 3; ++k) g_r(k) = pd.d1(k).cwiseProduct(Bg).sum();
+    for (int k = 0; k < 3; ++k) g_r(k) = pd.d1(k).cwiseProduct(sum.Bg).sum();
     for (int k = 0; k < 3; ++k) {
-      for (int l = 0; l < 3; ++l) h_rr(k, l) += pd.d2(kPair[k][l]).cwiseProduct(Bh).sum();
+      for (int l = 0; l < 3; ++l) {
+        sum.h_rr(k, l) += pd.d2(kPair[k][l]).cwiseProduct(sum.Bh).sum();
+      }
     }
-    r.gradient << g_t, g_r;
-    r.hessian.topLeftCorner<3, 3>() = h_tt;
-    r.hessian.topRightCorner<3, 3>() = h_tr;
-    r.hessian.bottomLeftCorner<3, 3>() = h_tr.transpose();
-    r.hessian.bottomRightCorner<3, 3>() = h_rr;
+    r.gradient << sum.g_t, g_r;
+    r.hessian.topLeftCorner<3, 3>() = sum.h_tt;
+    r.hessian.topRightCorner<3, 3>() = sum.h_tr;
+    r.hessian.bottomLeftCorner<3, 3>() = sum.h_tr.transpose();
+    r.hessian.bottomRightCorner<3, 3>() = sum.h_rr;
   }
   return r;
 }

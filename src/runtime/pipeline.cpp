@@ -10,6 +10,7 @@
 
 #include "cndt/core/ring_region.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
+#include "cndt/runtime/score_threads.hpp"
 #include "cndt/slam/correction_blend.hpp"
 
 namespace cndt::runtime {
@@ -106,6 +107,7 @@ struct Pipeline::Impl {
     return v > 0;
   }
   std::thread odometry_thread, mapper_thread;
+  std::unique_ptr<ScoreThreads> scorer;  // the odometry's helpers; started with it
 
   Impl(const PipelineOptions& o, std::size_t max_points, PosePublisher& p)
       : options(o),
@@ -434,6 +436,12 @@ void Pipeline::on_scan_done(void (*callback)(void*), void* context) {
 }
 
 void Pipeline::start() {
+  if (impl_->options.scoring_threads > 1) {
+    ThreadSetup helper = impl_->options.odometry_thread;
+    helper.cpu = -1;
+    impl_->scorer = std::make_unique<ScoreThreads>(impl_->options.scoring_threads - 1, helper);
+    impl_->odometry.set_score_runner(impl_->scorer.get());
+  }
   impl_->odometry_thread = std::thread([this] { impl_->run_odometry(); });
   if (mapper_) {
     impl_->mapper_thread = std::thread([this] { impl_->run_mapper(); });

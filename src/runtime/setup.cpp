@@ -120,6 +120,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   s.pipeline.odometry_thread.cpu = static_cast<int>(rt.odometry_cpu);
   s.pipeline.mapper_thread.nice = static_cast<int>(rt.mapper_nice);
   s.pipeline.mapper_thread.cpu = static_cast<int>(rt.mapper_cpu);
+  s.pipeline.scoring_threads = static_cast<std::size_t>(rt.scoring_threads);
 
   s.publisher.degraded_below_cm = c.output.degraded_below_cm;
   s.publisher.can_base_id = static_cast<std::uint32_t>(c.can.base_id);

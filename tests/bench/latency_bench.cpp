@@ -4,7 +4,12 @@
 // the last packet of its revolution to receiving its datagram. Prints p50/p90/p99/max, the
 // scans the daemon dropped, and the daemon's own final health line.
 //
-//   latency_bench CNDTD [SECONDS=60] [mapper]
+//   latency_bench CNDTD [SECONDS=60] [mapper] [realtime] [scoring=N]
+//
+// With `realtime` the daemon runs as configured for a vehicle computer ([runtime] realtime =
+// true: memory locked, the odometry thread SCHED_FIFO and pinned to the last CPU, the mapper to
+// the first); it needs the privilege (root or CAP_SYS_NICE), else the daemon warns and runs on.
+// scoring=N sets [runtime] scoring_threads (default: the configuration's default).
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -38,12 +43,28 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::cerr << "usage: latency_bench CNDTD [SECONDS=60] [mapper]\n";
+    std::cerr << "usage: latency_bench CNDTD [SECONDS=60] [mapper] [realtime] [scoring=N]\n";
     return 2;
   }
   const std::string cndtd = argv[1];
   const double seconds = argc > 2 ? std::stod(argv[2]) : 60.0;
-  const bool mapper = argc > 3 && std::string(argv[3]) == "mapper";
+  bool mapper = false, realtime = false;
+  std::string scoring;  // [runtime] scoring_threads, empty: the default
+  for (int i = 3; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "mapper") {
+      mapper = true;
+    } else if (a == "realtime") {
+      realtime = true;
+    } else if (a.starts_with("scoring=") && a.size() > 8 &&
+               a.find_first_not_of("0123456789", 8) == std::string::npos) {
+      scoring = a.substr(8);
+    } else {
+      std::cerr << "latency_bench: unknown argument '" << a << "' (mapper, realtime, scoring=N)\n";
+      return 2;
+    }
+  }
+  const unsigned cpus = std::max(1u, std::thread::hardware_concurrency());
 
   const auto dir =
       std::filesystem::temp_directory_path() / ("cndt-latency-" + std::to_string(::getpid()));
@@ -64,6 +85,11 @@ int main(int argc, char** argv) {
         << "\nposition_port = 0\n[mapper]\nenabled = " << (mapper ? "true" : "false")
         << "\n[can]\nlog = \"" << (dir / "can.log").string()
         << "\"\n[udp]\ndestinations = [\"127.0.0.1:" << rx.value()->port() << "\"]\n";
+    cfg << "[runtime]\n";
+    if (realtime) {
+      cfg << "realtime = true\nodometry_cpu = " << cpus - 1 << "\nmapper_cpu = 0\n";
+    }
+    if (!scoring.empty()) cfg << "scoring_threads = " << scoring << "\n";
   }
   std::fprintf(stderr, "simulating %.0f s of a street drive...\n", seconds);
   const auto scene = cndt::sim::build_scene(cndt::sim::SceneKind::kStreet, seconds, 4, 1);
@@ -146,9 +172,12 @@ int main(int argc, char** argv) {
     }
   }
   std::printf(
-      "cndtd at 10 Hz over loopback, %.0f s street drive%s: %zu packets, %zu poses "
+      "cndtd at 10 Hz over loopback, %.0f s street drive%s%s%s%s: %zu packets, %zu poses "
       "received\n",
-      seconds, mapper ? " with the mapper" : "", packets.size(), arrived.size());
+      seconds, mapper ? " with the mapper" : "",
+      realtime ? ", odometry thread SCHED_FIFO on its own CPU" : "",
+      scoring.empty() ? "" : ", scoring_threads = ", scoring.c_str(), packets.size(),
+      arrived.size());
   std::printf(
       "latency last packet -> pose datagram over %zu scans: p50 %.1f ms, p90 %.1f ms, "
       "p99 %.1f ms, max %.1f ms\n",

@@ -1,13 +1,16 @@
 // The NDT scoring kernel alone: one ndt_score call on a street scan's matched points (0.5 m
 // cells) against the odometry's local map after 40 scans, at the odometry's own pose for it.
 // Per call: with and without derivatives, 7 voxels per point and 1, with the lookup cache warm
-// (Newton iterations after the first) and without it (the first scoring of a scan).
+// (Newton iterations after the first) and without it (the first scoring of a scan), on one
+// thread and with the chunks shared with a helper thread (runtime::ScoreThreads, as cndtd runs
+// with [runtime] scoring_threads = 2; wall time).
 // Run: build/release/tests/bench/ndt_score_bench
 #include <benchmark/benchmark.h>
 
 #include <vector>
 
 #include "cndt/ndt/ndt_score.hpp"
+#include "cndt/runtime/score_threads.hpp"
 #include "cndt/slam/odometry.hpp"
 #include "sim_scans.hpp"
 
@@ -41,11 +44,22 @@ void Score(benchmark::State& state) {
   const bool derivatives = state.range(0) != 0;
   const auto neighbours = static_cast<cndt::ndt::Neighbours>(state.range(1));
   const bool warm = state.range(2) != 0;
+  const auto threads = static_cast<std::size_t>(state.range(3));
   const cndt::ndt::VoxelGrid& grid = f.odometry.reference_grid();
+  cndt::runtime::ScoreThreads helpers(threads - 1, {});
   cndt::ndt::LookupCache cache(f.points.size());
+  cndt::ndt::LookupCache cold(f.points.size());  // reset before every call
+  cache.set_runner(&helpers);
+  cold.set_runner(&helpers);
   std::size_t terms = 0;
   for (auto _ : state) {
-    cndt::ndt::LookupCache* c = warm ? &cache : nullptr;
+    if (!warm) {
+      state.PauseTiming();
+      cold = cndt::ndt::LookupCache(f.points.size());
+      cold.set_runner(&helpers);
+      state.ResumeTiming();
+    }
+    cndt::ndt::LookupCache* c = warm ? &cache : &cold;
     const cndt::ndt::ScoreResult r =
         cndt::ndt::ndt_score(grid, f.points, f.pose, derivatives, nullptr, neighbours, c);
     terms = r.terms;
@@ -58,13 +72,17 @@ void Score(benchmark::State& state) {
       benchmark::Counter(static_cast<double>(terms) * static_cast<double>(state.iterations()),
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
-// Arguments: derivatives, voxels per point, cache warm.
+// Arguments: derivatives, voxels per point, cache warm, threads.
 BENCHMARK(Score)
-    ->ArgNames({"derivatives", "voxels", "warm"})
-    ->Args({1, 7, 1})
-    ->Args({0, 7, 1})
-    ->Args({1, 7, 0})
-    ->Args({1, 1, 1})
+    ->ArgNames({"derivatives", "voxels", "warm", "threads"})
+    ->Args({1, 7, 1, 1})
+    ->Args({1, 7, 1, 2})
+    ->Args({0, 7, 1, 1})
+    ->Args({1, 7, 0, 1})
+    ->Args({1, 7, 0, 2})
+    ->Args({1, 1, 1, 1})
+    ->Args({1, 1, 1, 2})
+    ->UseRealTime()
     ->Unit(benchmark::kMicrosecond);
 
 }  // namespace

@@ -1,5 +1,6 @@
 // Consensus-NDT odometry per VLP-16 scan (600 rpm, ~28.8k returns) on a simulated street drive,
-// and consensus against naive mode side by side on the same scans in one run.
+// and consensus against naive mode side by side on the same scans in one run; then consensus with
+// its scorings shared with a helper thread as cndtd runs it ([runtime] scoring_threads = 2).
 // Run: build/release/tests/bench/odometry_bench
 #include <benchmark/benchmark.h>
 
@@ -7,6 +8,7 @@
 #include <chrono>
 #include <vector>
 
+#include "cndt/runtime/score_threads.hpp"
 #include "cndt/slam/odometry.hpp"
 #include "sim_scans.hpp"
 
@@ -27,10 +29,11 @@ struct Run {
   double iterations = 0.0;  // per matched scan
 };
 
-Run run_sequence(cndt::slam::OdometryMode mode) {
+Run run_sequence(cndt::slam::OdometryMode mode, cndt::ndt::TaskRunner* runner = nullptr) {
   cndt::slam::OdometryOptions o;
   o.mode = mode;
   cndt::slam::ConsensusOdometry odometry(o);
+  odometry.set_score_runner(runner);
   Run r;
   long iterations = 0;
   for (const auto& scan : street_scans()) {
@@ -76,5 +79,22 @@ void ConsensusVersusNaive(benchmark::State& state) {
   state.counters["time_ratio"] = c.total_ms / n.total_ms;
 }
 BENCHMARK(ConsensusVersusNaive)->Iterations(1)->Unit(benchmark::kSecond);
+
+// Consensus on one thread and with a helper, side by side (the poses are the same).
+void ConsensusOneVersusTwoThreads(benchmark::State& state) {
+  street_scans();
+  cndt::runtime::ScoreThreads helper(1, {});
+  Run one, two;
+  for (auto _ : state) {
+    one = run_sequence(cndt::slam::OdometryMode::kConsensus);
+    two = run_sequence(cndt::slam::OdometryMode::kConsensus, &helper);
+  }
+  state.counters["one_thread_ms_p50"] = percentile(one.ms, 0.5);
+  state.counters["one_thread_ms_p99"] = percentile(one.ms, 0.99);
+  state.counters["two_threads_ms_p50"] = percentile(two.ms, 0.5);
+  state.counters["two_threads_ms_p99"] = percentile(two.ms, 0.99);
+  state.counters["time_ratio"] = two.total_ms / one.total_ms;
+}
+BENCHMARK(ConsensusOneVersusTwoThreads)->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace

@@ -119,6 +119,7 @@ TEST(Runtime, OdometryThreadAllocatesNothingAfterWarmUp) {
   publisher.add_udp(std::move(udp.value()));
   PipelineOptions o;
   o.warmup_scans = 20;
+  o.scoring_threads = 2;  // as cndtd runs: the helper's hand-offs allocate nothing either
   PipelineStats stats;
   const auto results = run_pipeline(o, publisher, scans, &stats);
   ASSERT_EQ(results.size(), scans.size());
@@ -176,7 +177,9 @@ TEST(Runtime, ThreadedReplayEqualsASingleThreadedLoopEveryTime) {
     PipelineStats stats;
     // The third run hands the mapper its scans through a point buffer that holds only two of
     // them (30k points; 14-15k each), so it wraps around every other scan.
+    // Runs 1 and 2 also share the scorings with one and two helper threads.
     PipelineOptions ro = o;
+    ro.scoring_threads = static_cast<std::size_t>(run + 1);
     if (run == 2) ro.keyframe_ring_points = 1000;
     const auto results = run_pipeline(ro, publisher, scans, &stats, run == 2 ? 30'000 : 150'000);
     std::size_t k = 0;

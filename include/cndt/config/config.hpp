@@ -72,6 +72,7 @@ struct Config {
     std::int64_t odometry_cpu = -1;
     std::int64_t mapper_nice = 10;
     std::int64_t mapper_cpu = -1;
+    std::int64_t scoring_threads = 2;
     double status_interval_s = 10.0;
   } runtime;
   struct Output {

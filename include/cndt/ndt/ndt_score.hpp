@@ -41,6 +41,25 @@ class PoseDerivatives {
 
 class LookupCache;
 
+/// Runs task(context, i) for every i in [0, count) and returns when all have run: on the calling
+/// thread alone, or also on others (the runtime's scoring threads). The tasks of one call touch
+/// disjoint data.
+class TaskRunner {
+ public:
+  virtual void run(std::size_t count, void (*task)(void* context, std::size_t i),
+                   void* context) = 0;
+
+ protected:
+  ~TaskRunner() = default;
+};
+
+/// A scoring splits its points into this many fixed chunks (contiguous, equal up to one point)
+/// and adds the chunks' sums in chunk order: its result does not depend on whether, or on how
+/// many threads, the chunks ran on.
+inline constexpr std::size_t kScoreChunks = 8;
+/// Smaller scorings run on the calling thread alone (same result).
+inline constexpr std::size_t kParallelMinPoints = 1024;
+
 /// The scan's own motion, solved with its pose. A scan is undistorted (deskewed) with the motion
 /// that the pose `base` implies under constant velocity; at another pose x that motion changes
 /// by the pose's change from `base`, (v, w) = log(X(base)^-1 X(x)) in the sensor frame, and each
@@ -81,6 +100,9 @@ class LookupCache {
   /// without the cache.
   explicit LookupCache(std::size_t points);
   [[nodiscard]] std::size_t capacity() const { return capacity_; }
+  /// Scorings through this cache run their chunks on `runner` (null: on the calling thread).
+  /// The results are the same either way.
+  void set_runner(TaskRunner* runner) { runner_ = runner; }
 
  private:
   friend ScoreResult ndt_score(const VoxelGrid&, std::span<const Eigen::Vector3d>,
@@ -88,6 +110,7 @@ class LookupCache {
                                const ScanMotion*);
   void reset(std::size_t points);
   std::size_t capacity_;
+  TaskRunner* runner_ = nullptr;
   const VoxelGrid* grid_ = nullptr;
   std::uint64_t version_ = 0;
   int lookups_ = 0;

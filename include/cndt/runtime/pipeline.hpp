@@ -46,6 +46,10 @@ struct PipelineOptions {
   std::size_t warmup_scans = 20;  ///< allocations on the odometry thread count after these
   ThreadSetup odometry_thread;
   ThreadSetup mapper_thread;
+  /// Threads that score a scan's points against the reference: the odometry thread and
+  /// scoring_threads - 1 helpers (ScoreThreads), set up like the odometry thread but not
+  /// pinned. The poses do not depend on it.
+  std::size_t scoring_threads = 1;
 };
 
 /// What the odometry thread reports for each scan.

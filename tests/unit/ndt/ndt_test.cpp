@@ -296,6 +296,61 @@ TEST(LookupCache, GivesTheSameScoresAsFreshLookups) {
   }
 }
 
+// Runs a scoring's chunks last to first, as another thread might finish them, and counts them.
+class ReverseRunner final : public TaskRunner {
+ public:
+  void run(std::size_t count, void (*task)(void*, std::size_t), void* context) override {
+    for (std::size_t i = count; i-- > 0;) task(context, i);
+    tasks += count;
+  }
+  std::size_t tasks = 0;
+};
+
+// The chunks' sums are added in chunk order whoever runs them: a runner changes nothing, to
+// the bit, with and without derivatives, the cache and a scan motion.
+TEST(LookupCache, ScoringsThroughARunnerEqualThoseWithout) {
+  Scene s = random_scene(13);
+  std::vector<Eigen::Vector3d> points;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0.0, 0.05);
+  while (points.size() < 3 * kParallelMinPoints) {
+    for (const auto& p : s.test) points.push_back(p + Eigen::Vector3d(n(rng), n(rng), n(rng)));
+  }
+  std::vector<double> lever(points.size());
+  for (std::size_t i = 0; i < lever.size(); ++i) {
+    lever[i] = static_cast<double>(i) / static_cast<double>(lever.size());
+  }
+  ReverseRunner runner;
+  LookupCache plain_cache(points.size()), run_cache(points.size());
+  run_cache.set_runner(&runner);
+  std::size_t calls = 0;
+  for (int round = 0; round < 6; ++round) {
+    Pose6 x;
+    for (int k = 0; k < 6; ++k) x[k] = n(rng) * (k < 3 ? 4.0 : 0.4);
+    const ScanMotion motion{Pose6::Zero(), lever};
+    for (const ScanMotion* m : {static_cast<const ScanMotion*>(nullptr), &motion}) {
+      for (bool derivatives : {false, true}) {
+        const ScoreResult a =
+            ndt_score(s.grid, points, x, derivatives, nullptr, Neighbours::kSeven, &plain_cache, m);
+        const ScoreResult b =
+            ndt_score(s.grid, points, x, derivatives, nullptr, Neighbours::kSeven, &run_cache, m);
+        ++calls;
+        EXPECT_GT(a.matched, 0u);
+        EXPECT_EQ(a.matched, b.matched);
+        EXPECT_EQ(a.terms, b.terms);
+        EXPECT_EQ(a.score, b.score);
+        EXPECT_TRUE(a.gradient == b.gradient);
+        EXPECT_TRUE(a.hessian == b.hessian);
+      }
+    }
+  }
+  EXPECT_EQ(runner.tasks, calls * kScoreChunks);
+  // Below kParallelMinPoints the calling thread scores alone.
+  ndt_score(s.grid, std::span(points).first(kParallelMinPoints - 1), Pose6::Zero(), true, nullptr,
+            Neighbours::kSeven, &run_cache);
+  EXPECT_EQ(runner.tasks, calls * kScoreChunks);
+}
+
 // Ground, two walls and a box, sampled densely (1 cm noise).
 std::vector<Eigen::Vector3d> structured_world(std::uint32_t seed) {
   std::vector<Eigen::Vector3d> world;
