@@ -134,7 +134,8 @@ struct alignas(64) Partial {
                   Bh = Eigen::Matrix3d::Zero();
 };
 
-// What every chunk of one scoring reads. `cache` is null when the scoring goes without one.
+// What every chunk of one scoring reads; cache_keys and cache_indices are null when the scoring
+// goes without the cache.
 struct ScoreJob {
   const VoxelGrid* grid;
   std::span<const Eigen::Vector3d> points;
