@@ -23,12 +23,9 @@ ScoreThreads::ScoreThreads(std::size_t helpers, const ThreadSetup& setup) {
   threads_.reserve(helpers);
   for (std::size_t h = 0; h < helpers; ++h) {
     threads_.emplace_back([this, setup, h] {
-      if (h == 0) {  // one thread's messages stand for all
-        for (const auto& p : apply_thread_setup(setup)) {
-          spdlog::warn("scoring thread: {}; running on without it", p);
-        }
-      } else {
-        apply_thread_setup(setup);
+      const auto problems = apply_thread_setup(setup);
+      for (const auto& p : problems) {
+        if (h == 0) spdlog::warn("scoring thread: {}; running on without it", p);  // one for all
       }
       helper_loop();
     });

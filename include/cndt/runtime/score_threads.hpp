@@ -28,7 +28,6 @@ class ScoreThreads final : public ndt::TaskRunner {
 
   /// Runs the tasks on the calling thread and the helpers; one caller at a time.
   void run(std::size_t count, void (*task)(void* context, std::size_t i), void* context) override;
-  [[nodiscard]] std::size_t helpers() const { return threads_.size(); }
 
  private:
   void helper_loop();
