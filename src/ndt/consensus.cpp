@@ -53,11 +53,11 @@ void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     const std::int32_t idx = found[i % kRing];
     if (i + kAhead < points.size()) look_ahead(i + kAhead);
     if (idx < 0) continue;
-    const Voxel& vox = grid.voxels()[static_cast<std::size_t>(idx)];
-    if (!vox.has_gaussian) continue;
-    const Eigen::Vector3d q = v - vox.mean;
+    const Gaussian& g = grid.gaussians()[static_cast<std::size_t>(idx)];
+    if (g.valid == 0) continue;
+    Eigen::Vector3d a;
     out.count[static_cast<std::size_t>(idx)] += 1;
-    out.rss[static_cast<std::size_t>(idx)] += q.dot(vox.inv_cov * q);
+    out.rss[static_cast<std::size_t>(idx)] += g.mahalanobis(v, a);
   }
 }
 

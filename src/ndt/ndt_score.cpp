@@ -74,13 +74,12 @@ void LookupCache::reset(std::size_t points) {
 
 namespace {
 
-// Voxel `idx` of `grid` when it has a Gaussian the mask enables, else nullptr.
-inline const Voxel* enabled_gaussian(const VoxelGrid& grid, std::int64_t idx, VoxelMask mask) {
-  const Voxel& vox = grid.voxels()[static_cast<std::size_t>(idx)];
-  if (!vox.has_gaussian || (mask != nullptr && (*mask)[static_cast<std::size_t>(idx)] == 0)) {
-    return nullptr;
-  }
-  return &vox;
+// The Gaussian of voxel `idx` of `grid` when it has one the mask enables, else nullptr.
+inline const Gaussian* enabled_gaussian(const VoxelGrid& grid, std::int32_t idx, VoxelMask mask) {
+  const auto i = static_cast<std::size_t>(idx);
+  const Gaussian& g = grid.gaussians()[i];
+  if (g.valid == 0 || (mask != nullptr && (*mask)[i] == 0)) return nullptr;
+  return &g;
 }
 
 // Beyond this squared Mahalanobis distance a term is 0 to the precision of the sums: e < 1e-13,
@@ -90,11 +89,29 @@ constexpr double kFarSquared = 60.0;
 
 // e = exp(-q^T A q / 2) for q = v - mu (eq 5's term without its sign), and a = A q; e = 0
 // beyond kFarSquared, where the exponential is not evaluated.
-inline double gaussian_term(const Voxel& vox, const Eigen::Vector3d& v, Eigen::Vector3d& a) {
-  const Eigen::Vector3d q = v - vox.mean;
-  a = vox.inv_cov * q;
-  const double d2 = q.dot(a);
+inline double gaussian_term(const Gaussian& g, const Eigen::Vector3d& v, Eigen::Vector3d& a) {
+  const double d2 = g.mahalanobis(v, a);
   return d2 < kFarSquared ? std::exp(-0.5 * d2) : 0.0;
+}
+
+// The six distinct entries (xx, xy, xz, yy, yz, zz) of a symmetric 3 x 3 matrix.
+using Sym3 = Eigen::Matrix<double, 6, 1>;
+
+// m += e (A - a a^T) for the Gaussian's A, in Sym3 entries.
+inline void add_curvature(Sym3& m, double e, const Gaussian& g, const Eigen::Vector3d& a) {
+  const double ea0 = e * a.x(), ea1 = e * a.y(), ea2 = e * a.z();
+  m(0) += e * g.inv_cov[0] - ea0 * a.x();
+  m(1) += e * g.inv_cov[1] - ea0 * a.y();
+  m(2) += e * g.inv_cov[2] - ea0 * a.z();
+  m(3) += e * g.inv_cov[3] - ea1 * a.y();
+  m(4) += e * g.inv_cov[4] - ea1 * a.z();
+  m(5) += e * g.inv_cov[5] - ea2 * a.z();
+}
+
+Eigen::Matrix3d full(const Sym3& m) {
+  Eigen::Matrix3d out;
+  out << m(0), m(1), m(2), m(1), m(3), m(4), m(2), m(4), m(5);
+  return out;
 }
 
 }  // namespace
@@ -107,17 +124,19 @@ double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours n
   if (M != nullptr) M->setZero();
   std::array<std::int32_t, 7> found{};
   grid.indices_around(key, static_cast<int>(neighbours), found.data());
+  Sym3 m = Sym3::Zero();
   for (int n = 0; n < static_cast<int>(neighbours); ++n) {
     const std::int32_t idx = found[static_cast<std::size_t>(n)];
     if (idx < 0) continue;
-    const Voxel* vox = enabled_gaussian(grid, idx, mask);
-    if (vox == nullptr) continue;
+    const Gaussian* g = enabled_gaussian(grid, idx, mask);
+    if (g == nullptr) continue;
     Eigen::Vector3d a;
-    const double e = gaussian_term(*vox, q, a);
+    const double e = gaussian_term(*g, q, a);
     score -= e;  // eq 5
     if (b != nullptr) *b += e * a;
-    if (M != nullptr) M->noalias() += e * (vox->inv_cov - a * a.transpose());
+    if (M != nullptr) add_curvature(m, e, *g, a);
   }
+  if (M != nullptr) *M = full(m);
   return score;
 }
 
@@ -129,9 +148,10 @@ struct alignas(64) Partial {
   double score = 0.0;
   std::size_t terms = 0, matched = 0;
   Eigen::Vector3d g_t = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d h_tt = Eigen::Matrix3d::Zero(), h_tr = Eigen::Matrix3d::Zero(),
-                  h_rr = Eigen::Matrix3d::Zero(), Bg = Eigen::Matrix3d::Zero(),
-                  Bh = Eigen::Matrix3d::Zero();
+  Sym3 h_tt = Sym3::Zero();  // sum M
+  Sym3 N = Sym3::Zero();     // sum [r]x M [r]x
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero(), Bg = Eigen::Matrix3d::Zero(),
+                  Bh = Eigen::Matrix3d::Zero();  // sum M [r]x, sum b p^T (twice)
 };
 
 // What every chunk of one scoring reads; cache_keys and cache_indices are null when the scoring
@@ -140,6 +160,7 @@ struct ScoreJob {
   const VoxelGrid* grid;
   std::span<const Eigen::Vector3d> points;
   const PoseDerivatives* pd;
+  Eigen::Vector3d t;  // the pose's translation
   Eigen::Vector3d mv, mw;
   bool derivatives;
   VoxelMask mask;
@@ -166,6 +187,10 @@ void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partia
   //   S -= sum e_v;  gradient += J^T b;  Hessian += J^T M J + b^T d2q/dx_k dx_l,
   // where b = sum e_v a_v and M = sum e_v (A_v - a_v a_v^T). Summing b and M over the voxels
   // first leaves one Jacobian product per point.
+  // J's rotation columns dR/dangle_k p are w_k x r for r = R p and the fixed axes w_k of the
+  // Euler angles (x, then y turned by the first angle, then z turned by both): J_r = -[r]x W.
+  // So J_r^T M J_r = -W^T ([r]x M [r]x) W and M J_r = -(M [r]x) W: per point only the
+  // symmetric N = [r]x M [r]x and C = M [r]x are summed, and W applied once per scoring.
   // The terms linear in b are sums of b^T D p for matrices D fixed by the pose (dR/dangle_k for
   // the gradient, d2R/dangle_k dangle_l for the Hessian): b^T D p is the entrywise product of D
   // with b p^T, so only the outer products are summed per point, Bg = sum b p^T with the
@@ -210,27 +235,24 @@ void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partia
     if (i + kPlace < end) place(i + kPlace);
     if (i + kFind < end) find(i + kFind);
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    Sym3 m = Sym3::Zero();
     bool any = false;
     for (int n = 0; n < lookups; ++n) {
       const std::int32_t idx = found[n];
       if (idx < 0) continue;
-      const Voxel* vox = enabled_gaussian(grid, idx, job.mask);
-      if (vox == nullptr) continue;
+      const Gaussian* g = enabled_gaussian(grid, idx, job.mask);
+      if (g == nullptr) continue;
       Eigen::Vector3d a;
-      const double e = gaussian_term(*vox, v, a);
+      const double e = gaussian_term(*g, v, a);
       out.score -= e;  // eq 5
       ++out.terms;
       any = true;
       if (!job.derivatives || e == 0.0) continue;
       b += e * a;
-      M.noalias() += e * (vox->inv_cov - a * a.transpose());
+      add_curvature(m, e, *g, a);
     }
     if (any) ++out.matched;
     if (!job.derivatives || !any) continue;
-    // J = [I | dR/dphi p, dR/dtheta p, dR/dpsi p]
-    Eigen::Matrix3d Jr;
-    for (int k = 0; k < 3; ++k) Jr.col(k) = pd.d1(k) * p;
     // With a scan motion the Jacobian is (1 + lever) J: the gradient takes b that many times,
     // the Hessian's terms the square of it.
     if (motion != nullptr) {
@@ -239,16 +261,27 @@ void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partia
       out.g_t += b;
       out.Bg.noalias() += b * p.transpose();
       b *= scale;
-      M *= scale * scale;
+      m *= scale * scale;
       out.Bh.noalias() += b * p.transpose();
     } else {
       out.g_t += b;
       out.Bg.noalias() += b * p.transpose();  // Bh is Bg
     }
-    out.h_tt += M;
-    const Eigen::Matrix3d MJr = M * Jr;
-    out.h_tr += MJr;
-    out.h_rr.noalias() += Jr.transpose() * MJr;
+    out.h_tt += m;
+    // C += M [r]x: row i is M's row i crossed with r. N += [r]x (M [r]x): column j is r crossed
+    // with column j of M [r]x (symmetric: six entries).
+    const double r0 = v.x() - job.t.x(), r1 = v.y() - job.t.y(), r2 = v.z() - job.t.z();
+    Eigen::Matrix3d K;
+    K << m(1) * r2 - m(2) * r1, m(2) * r0 - m(0) * r2, m(0) * r1 - m(1) * r0,  //
+        m(3) * r2 - m(4) * r1, m(4) * r0 - m(1) * r2, m(1) * r1 - m(3) * r0,   //
+        m(4) * r2 - m(5) * r1, m(5) * r0 - m(2) * r2, m(2) * r1 - m(4) * r0;
+    out.C += K;
+    out.N(0) += r1 * K(2, 0) - r2 * K(1, 0);
+    out.N(1) += r1 * K(2, 1) - r2 * K(1, 1);
+    out.N(2) += r1 * K(2, 2) - r2 * K(1, 2);
+    out.N(3) += r2 * K(0, 1) - r0 * K(2, 1);
+    out.N(4) += r2 * K(0, 2) - r0 * K(2, 2);
+    out.N(5) += r0 * K(1, 2) - r1 * K(0, 2);
   }
 }
 
@@ -294,6 +327,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   ScoreJob job{&grid,
                points,
                &pd,
+               x.head<3>(),
                mv,
                mw,
                derivatives,
@@ -317,8 +351,8 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     r.matched += p.matched;
     sum.g_t += p.g_t;
     sum.h_tt += p.h_tt;
-    sum.h_tr += p.h_tr;
-    sum.h_rr += p.h_rr;
+    sum.N += p.N;
+    sum.C += p.C;
     sum.Bg += p.Bg;
     sum.Bh += p.Bh;
   }
@@ -327,16 +361,23 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     if (motion == nullptr) sum.Bh = sum.Bg;
     Eigen::Vector3d g_r;
     for (int k = 0; k < 3; ++k) g_r(k) = pd.d1(k).cwiseProduct(sum.Bg).sum();
+    // The rotation axes W of the Euler angles (score_range).
+    const double sphi = std::sin(x[3]), cphi = std::cos(x[3]);
+    const double stheta = std::sin(x[4]), ctheta = std::cos(x[4]);
+    Eigen::Matrix3d W;
+    W << 1.0, 0.0, stheta, 0.0, cphi, -sphi * ctheta, 0.0, sphi, cphi * ctheta;
+    const Eigen::Matrix3d h_tr = -sum.C * W;
+    Eigen::Matrix3d h_rr = -W.transpose() * full(sum.N) * W;
     for (int k = 0; k < 3; ++k) {
       for (int l = 0; l < 3; ++l) {
-        sum.h_rr(k, l) += pd.d2(kPair[k][l]).cwiseProduct(sum.Bh).sum();
+        h_rr(k, l) += pd.d2(kPair[k][l]).cwiseProduct(sum.Bh).sum();
       }
     }
     r.gradient << sum.g_t, g_r;
-    r.hessian.topLeftCorner<3, 3>() = sum.h_tt;
-    r.hessian.topRightCorner<3, 3>() = sum.h_tr;
-    r.hessian.bottomLeftCorner<3, 3>() = sum.h_tr.transpose();
-    r.hessian.bottomRightCorner<3, 3>() = sum.h_rr;
+    r.hessian.topLeftCorner<3, 3>() = full(sum.h_tt);
+    r.hessian.topRightCorner<3, 3>() = h_tr;
+    r.hessian.bottomLeftCorner<3, 3>() = h_tr.transpose();
+    r.hessian.bottomRightCorner<3, 3>() = h_rr;
   }
   return r;
 }

@@ -32,9 +32,11 @@ VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
   version_ = (grids.fetch_add(1, std::memory_order_relaxed) + 1) << 32;
   if (options.resident) {
     core::reserve_resident(voxels_, options.capacity);
+    core::reserve_resident(gaussians_, options.capacity);
     core::reserve_resident(dirty_, options.capacity);
   } else {
     voxels_.reserve(options.capacity);
+    gaussians_.reserve(options.capacity);
     dirty_.reserve(options.capacity);
   }
   // Load factor at most one half, also when full.
@@ -137,6 +139,7 @@ bool VoxelGrid::restore(const VoxelKey& k, std::uint32_t count, const Eigen::Vec
   grow_table_for(voxels_.size() + 1);
   insert_slot(k, static_cast<std::int32_t>(voxels_.size()));
   voxels_.emplace_back();
+  gaussians_.emplace_back();
   Voxel& v = voxels_.back();
   v.key = k;
   v.count = count;
@@ -160,6 +163,7 @@ Voxel* VoxelGrid::add_point(const Eigen::Vector3d& p) noexcept {
     found = static_cast<std::int32_t>(voxels_.size());
     insert_slot(k, found);
     voxels_.emplace_back();
+    gaussians_.emplace_back();
     voxels_.back().key = k;
     ++version_;  // a lookup that found nothing here would now find this voxel
   } else if (voxels_[static_cast<std::size_t>(found)].count == 0) {
@@ -194,6 +198,17 @@ bool VoxelGrid::remove(const Eigen::Vector3d& p) noexcept {
   return true;
 }
 
+void VoxelGrid::publish(std::size_t index) noexcept {
+  const Voxel& v = voxels_[index];
+  Gaussian& g = gaussians_[index];
+  g.valid = v.has_gaussian ? 1 : 0;
+  if (!v.has_gaussian) return;
+  for (int i = 0; i < 3; ++i) g.mean[i] = v.mean(i);
+  const Eigen::Matrix3d& A = v.inv_cov;
+  const double upper[6] = {A(0, 0), A(0, 1), A(0, 2), A(1, 1), A(1, 2), A(2, 2)};
+  for (int i = 0; i < 6; ++i) g.inv_cov[i] = static_cast<float>(upper[i]);
+}
+
 void VoxelGrid::derive(Voxel& v) const noexcept {
   v.has_gaussian = v.count >= options_.min_points;
   if (!v.has_gaussian) return;
@@ -220,6 +235,7 @@ void VoxelGrid::finalize() noexcept {
     Voxel& v = voxels_[i];
     v.dirty = false;
     derive(v);
+    publish(i);
   }
   dirty_.clear();
 }
@@ -235,14 +251,17 @@ void VoxelGrid::rebuild_table() noexcept {
   std::fill_n(table_.begin(), mask_ + 1, Slot{});
   mask_ = std::min(table_.size(), std::bit_ceil(std::max<std::size_t>(16, voxels_.size() * 2))) - 1;
   empty_ = 0;
+  gaussians_.resize(voxels_.size());  // within the capacity: no allocation
   for (std::size_t i = 0; i < voxels_.size(); ++i) {
     insert_slot(voxels_[i].key, static_cast<std::int32_t>(i));
     if (voxels_[i].count == 0) ++empty_;
+    publish(i);
   }
 }
 
 void VoxelGrid::clear() noexcept {
   voxels_.clear();
+  gaussians_.clear();
   dirty_.clear();
   std::fill_n(table_.begin(), mask_ + 1, Slot{});
   mask_ = 15;
