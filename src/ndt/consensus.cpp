@@ -98,10 +98,10 @@ double localization_consensus(std::span<const Eigen::Vector3d> directions,
 double localization_consensus(const VoxelGrid& grid, const std::vector<double>& cv,
                               const Eigen::Vector3d& sensor_position) {
   Eigen::Matrix3d gg = Eigen::Matrix3d::Zero(), gwg = Eigen::Matrix3d::Zero();
-  const auto& voxels = grid.voxels();
-  for (std::size_t j = 0; j < voxels.size() && j < cv.size(); ++j) {
-    if (std::isnan(cv[j])) continue;
-    const Eigen::Vector3d d = voxels[j].mean - sensor_position;
+  const auto& gaussians = grid.gaussians();
+  for (std::size_t j = 0; j < gaussians.size() && j < cv.size(); ++j) {
+    if (std::isnan(cv[j]) || gaussians[j].valid == 0) continue;
+    const Eigen::Vector3d d = gaussians[j].mean_vector() - sensor_position;
     const double n = d.norm();
     if (n < 1e-6) continue;
     const Eigen::Vector3d u = d / n;

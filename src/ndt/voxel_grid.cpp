@@ -198,23 +198,15 @@ bool VoxelGrid::remove(const Eigen::Vector3d& p) noexcept {
   return true;
 }
 
-void VoxelGrid::publish(std::size_t index) noexcept {
-  const Voxel& v = voxels_[index];
+void VoxelGrid::derive(std::size_t index) noexcept {
+  Voxel& v = voxels_[index];
   Gaussian& g = gaussians_[index];
-  g.valid = v.has_gaussian ? 1 : 0;
-  if (!v.has_gaussian) return;
-  for (int i = 0; i < 3; ++i) g.mean[i] = v.mean(i);
-  const Eigen::Matrix3d& A = v.inv_cov;
-  const double upper[6] = {A(0, 0), A(0, 1), A(0, 2), A(1, 1), A(1, 2), A(2, 2)};
-  for (int i = 0; i < 6; ++i) g.inv_cov[i] = static_cast<float>(upper[i]);
-}
-
-void VoxelGrid::derive(Voxel& v) const noexcept {
-  v.has_gaussian = v.count >= options_.min_points;
-  if (!v.has_gaussian) return;
+  v.has_gaussian = false;
+  g.valid = 0;
+  if (v.count < options_.min_points) return;
   const double n = v.count;
   const Eigen::Vector3d m = v.sum / n;
-  v.mean = corner(v.key) + m;                                 // eq 4, mean
+  const Eigen::Vector3d mean = corner(v.key) + m;             // eq 4, mean
   Eigen::Matrix3d cov = v.sum_outer / n - m * m.transpose();  // eq 4, covariance
   cov = 0.5 * (cov + cov.transpose());
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
@@ -222,27 +214,32 @@ void VoxelGrid::derive(Voxel& v) const noexcept {
   Eigen::Vector3d ev = es.eigenvalues();
   if (options_.drop_horizontal_lines && ev(1) < 0.05 * ev(2) &&
       std::abs(es.eigenvectors().col(2).z()) < 0.5) {
-    v.has_gaussian = false;  // a ring arc: one dominant, nearly horizontal direction
-    return;
+    return;  // a ring arc: one dominant, nearly horizontal direction
   }
   const double floor = std::max(ev.maxCoeff(), 1e-12) * options_.eigen_floor;
   ev = ev.cwiseMax(floor);  // planes and lines would otherwise be singular
-  v.inv_cov = es.eigenvectors() * ev.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+  // Assigned rather than initialised: Eigen evaluates the two forms of this product in a
+  // different order, and the inverse covariance moves in its last bits.
+  Eigen::Matrix3d A;
+  A = es.eigenvectors() * ev.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+  v.has_gaussian = true;
+  g.valid = 1;
+  for (int i = 0; i < 3; ++i) g.mean[i] = mean(i);
+  const double upper[6] = {A(0, 0), A(0, 1), A(0, 2), A(1, 1), A(1, 2), A(2, 2)};
+  for (int i = 0; i < 6; ++i) g.inv_cov[i] = static_cast<float>(upper[i]);
 }
 
 void VoxelGrid::finalize() noexcept {
   for (std::uint32_t i : dirty_) {
-    Voxel& v = voxels_[i];
-    v.dirty = false;
-    derive(v);
-    publish(i);
+    voxels_[i].dirty = false;
+    derive(i);
   }
   dirty_.clear();
 }
 
 void VoxelGrid::compact() noexcept {
   finalize();
-  std::erase_if(voxels_, [](const Voxel& v) { return v.count == 0; });  // keeps the capacity
+  remove_voxels_if([](const Voxel& v) { return v.count == 0; });
   rebuild_table();
 }
 
@@ -251,11 +248,9 @@ void VoxelGrid::rebuild_table() noexcept {
   std::fill_n(table_.begin(), mask_ + 1, Slot{});
   mask_ = std::min(table_.size(), std::bit_ceil(std::max<std::size_t>(16, voxels_.size() * 2))) - 1;
   empty_ = 0;
-  gaussians_.resize(voxels_.size());  // within the capacity: no allocation
   for (std::size_t i = 0; i < voxels_.size(); ++i) {
     insert_slot(voxels_[i].key, static_cast<std::int32_t>(i));
     if (voxels_[i].count == 0) ++empty_;
-    publish(i);
   }
 }
 

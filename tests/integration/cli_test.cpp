@@ -321,10 +321,12 @@ TEST(CliMap, InfoAndExportsAgreeAndTheExportsParseBack) {
                                  std::istreambuf_iterator<char>());
   ASSERT_EQ(body.size(), vertices * 24);
   std::size_t k = 0;
-  for (const auto& v : map.grid().voxels()) {
+  for (std::size_t i = 0; i < map.grid().size(); ++i) {
+    const auto& v = map.grid().voxels()[i];
     if (!v.has_gaussian) continue;
-    EXPECT_EQ(cndt::core::load_le_f32(body, k * 24), static_cast<float>(v.mean.x()));
-    EXPECT_EQ(cndt::core::load_le_f32(body, k * 24 + 8), static_cast<float>(v.mean.z()));
+    const auto& g = map.grid().gaussians()[i];
+    EXPECT_EQ(cndt::core::load_le_f32(body, k * 24), static_cast<float>(g.mean[0]));
+    EXPECT_EQ(cndt::core::load_le_f32(body, k * 24 + 8), static_cast<float>(g.mean[2]));
     EXPECT_NEAR(cndt::core::load_le_f32(body, k * 24 + 16), v.consensus, 1e-6);
     EXPECT_EQ(cndt::core::load_le32(body, k * 24 + 20), v.count);
     ++k;

@@ -18,32 +18,37 @@ struct VoxelKey {
   bool operator==(const VoxelKey&) const = default;
 };
 
-/// One voxel: running sums (eqs 1-3) and the Gaussian derived from them (eq 4). The sums are
-/// kept relative to the voxel's corner (key x L), so that they stay exact far from the origin
-/// and after many additions and removals.
+/// One voxel: running sums (eqs 1-3); the Gaussian derived from them (eq 4) is kept apart
+/// (VoxelGrid::gaussians()). The sums are kept relative to the voxel's corner (key x L), so
+/// that they stay exact far from the origin and after many additions and removals.
 struct Voxel {
   VoxelKey key;
   std::uint32_t count = 0;  ///< N_j
-  // Derived by VoxelGrid::finalize() (the fields scoring reads come first):
-  bool has_gaussian = false;  ///< N_j >= min_points
-  bool dirty = false;         ///< changed since the last finalize()
+  /// Set by VoxelGrid::finalize(): N_j >= min_points (and not dropped as a ring arc).
+  bool has_gaussian = false;
+  bool dirty = false;  ///< changed since the last finalize()
   /// Mean voxel consensus Cv of the points added with one (a map's voxels); 0 otherwise.
   float consensus = 0.0f;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d inv_cov = Eigen::Matrix3d::Zero();
   // Running sums, corner-relative: m_j = sum (p_i - c), S_j = sum (p_i - c)(p_i - c)^T.
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
 };
 
-/// A voxel's Gaussian as scoring reads it, in one cache line (the Voxel it comes from spans
-/// three): the mean, and the six distinct entries of the inverse covariance in single precision
-/// (relative error 6e-8: a Gaussian a few nanometres from the double one, and the same model
-/// for the score and its derivatives).
+/// A voxel's Gaussian (eq 4) as scoring reads it, in one cache line: the mean, and the six
+/// distinct entries of the inverse covariance in single precision (relative error 6e-8: the
+/// same model for the score and its derivatives, a few nanometres from the double one).
 struct alignas(64) Gaussian {
   double mean[3] = {0.0, 0.0, 0.0};
   float inv_cov[6] = {};    ///< A: xx, xy, xz, yy, yz, zz
   std::uint32_t valid = 0;  ///< the voxel has a Gaussian (Voxel::has_gaussian)
+
+  [[nodiscard]] Eigen::Vector3d mean_vector() const noexcept { return {mean[0], mean[1], mean[2]}; }
+  [[nodiscard]] Eigen::Matrix3d inv_cov_matrix() const noexcept {
+    Eigen::Matrix3d A;
+    A << inv_cov[0], inv_cov[1], inv_cov[2], inv_cov[1], inv_cov[3], inv_cov[4], inv_cov[2],
+        inv_cov[4], inv_cov[5];
+    return A;
+  }
 
   /// Returns q^T A q and sets a = A q, for q = v - mean.
   double mahalanobis(const Eigen::Vector3d& v, Eigen::Vector3d& a) const noexcept {
@@ -87,7 +92,7 @@ class VoxelGrid {
   template <class Pred>
   std::size_t erase_voxels_if(Pred pred) noexcept {
     finalize();
-    const std::size_t n = std::erase_if(voxels_, pred);  // keeps the capacity
+    const std::size_t n = remove_voxels_if(pred);
     if (n > 0) rebuild_table();
     return n;
   }
@@ -138,7 +143,7 @@ class VoxelGrid {
   /// Occupied voxels, in insertion order.
   [[nodiscard]] const std::vector<Voxel>& voxels() const noexcept { return voxels_; }
   /// The Gaussians of voxels() as of the last finalize(), index for index (valid = 0 where a
-  /// voxel has none): what scoring and the voxel consensus read.
+  /// voxel has none).
   [[nodiscard]] const std::vector<Gaussian>& gaussians() const noexcept { return gaussians_; }
   [[nodiscard]] std::size_t size() const noexcept { return voxels_.size(); }
   [[nodiscard]] std::uint64_t refused_points() const noexcept { return refused_; }
@@ -162,8 +167,25 @@ class VoxelGrid {
   void rebuild_table() noexcept;
   [[nodiscard]] Eigen::Vector3d corner(const VoxelKey& k) const noexcept;
   void mark_dirty(Voxel& v, std::size_t index) noexcept;
-  void derive(Voxel& v) const noexcept;
-  void publish(std::size_t index) noexcept;  // gaussians_[index] from voxels_[index]
+  void derive(std::size_t index) noexcept;  // gaussians_[index] from voxels_[index]'s sums
+  // Drops the voxels for which pred holds, with their Gaussians, keeping the order and the
+  // capacity; the table is left to rebuild.
+  template <class Pred>
+  std::size_t remove_voxels_if(Pred pred) noexcept {
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < voxels_.size(); ++i) {
+      if (pred(voxels_[i])) continue;
+      if (kept != i) {
+        voxels_[kept] = voxels_[i];
+        gaussians_[kept] = gaussians_[i];
+      }
+      ++kept;
+    }
+    const std::size_t removed = voxels_.size() - kept;
+    voxels_.resize(kept);  // shrinking: no allocation
+    gaussians_.resize(kept);
+    return removed;
+  }
 
   VoxelGridOptions options_;
   double inv_size_;

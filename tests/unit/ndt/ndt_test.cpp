@@ -30,15 +30,18 @@ TEST(VoxelGrid, RunningSumsGiveMeanAndCovariance) {
   }
   g.finalize();
   ASSERT_EQ(g.size(), 1u);
-  const Voxel& v = g.voxels()[0];
+  ASSERT_TRUE(g.voxels()[0].has_gaussian);
+  const Gaussian& v = g.gaussians()[0];
+  ASSERT_EQ(v.valid, 1u);
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& p : pts) mean += p;
   mean /= 400.0;
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
   for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose();
   cov /= 400.0;  // population covariance, as documented
-  EXPECT_LT((v.mean - mean).norm(), 1e-12);
-  EXPECT_LT((v.inv_cov - cov.inverse()).norm() / cov.inverse().norm(), 1e-9);
+  EXPECT_LT((v.mean_vector() - mean).norm(), 1e-12);
+  // The inverse covariance is kept in single precision.
+  EXPECT_LT((v.inv_cov_matrix() - cov.inverse()).norm() / cov.inverse().norm(), 1e-7);
 }
 
 TEST(VoxelGrid, RaisesSmallEigenvaluesAndNeedsFivePoints) {
@@ -52,8 +55,9 @@ TEST(VoxelGrid, RaisesSmallEigenvaluesAndNeedsFivePoints) {
   ASSERT_EQ(g.size(), 2u);
   const Voxel& plane = *g.find(Eigen::Vector3d(0.5, 0.5, 0.5));
   ASSERT_TRUE(plane.has_gaussian);
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(plane.inv_cov.inverse());
-  EXPECT_NEAR(es.eigenvalues()(0) / es.eigenvalues()(2), 0.001, 1e-9);
+  const Gaussian& gp = g.gaussians()[static_cast<std::size_t>(g.index_of(plane.key))];
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(gp.inv_cov_matrix().inverse());
+  EXPECT_NEAR(es.eigenvalues()(0) / es.eigenvalues()(2), 0.001, 1e-7);  // single precision
   EXPECT_FALSE(g.find(Eigen::Vector3d(1.5, 0.5, 0.5))->has_gaussian);
 }
 
@@ -86,15 +90,20 @@ TEST(VoxelGrid, RemovingPointsLeavesTheGridOfTheRest) {
   fresh.finalize();
   auto compare = [&] {
     std::size_t gaussians = 0;
-    for (const Voxel& v : fresh.voxels()) {
-      const Voxel* w = sliding.find(v.key);
-      ASSERT_NE(w, nullptr);
-      ASSERT_EQ(w->count, v.count);
-      ASSERT_EQ(w->has_gaussian, v.has_gaussian);
+    for (std::size_t i = 0; i < fresh.size(); ++i) {
+      const Voxel& v = fresh.voxels()[i];
+      const std::int64_t j = sliding.index_of(v.key);
+      ASSERT_GE(j, 0);
+      const Voxel& w = sliding.voxels()[static_cast<std::size_t>(j)];
+      ASSERT_EQ(w.count, v.count);
+      ASSERT_EQ(w.has_gaussian, v.has_gaussian);
       if (!v.has_gaussian) continue;
       ++gaussians;
-      EXPECT_LT((w->mean - v.mean).norm(), 1e-9);
-      EXPECT_LT((w->inv_cov - v.inv_cov).norm(), 1e-6 * v.inv_cov.norm());
+      const Gaussian& gv = fresh.gaussians()[i];
+      const Gaussian& gw = sliding.gaussians()[static_cast<std::size_t>(j)];
+      EXPECT_LT((gw.mean_vector() - gv.mean_vector()).norm(), 1e-9);
+      EXPECT_LT((gw.inv_cov_matrix() - gv.inv_cov_matrix()).norm(),
+                1e-6 * gv.inv_cov_matrix().norm());
     }
     EXPECT_GT(gaussians, 10u);
   };

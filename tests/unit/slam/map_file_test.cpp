@@ -96,8 +96,9 @@ TEST(MapFile, RoundTripIsExact) {
     ASSERT_EQ(a.sum_outer, b.sum_outer);
     ASSERT_EQ(a.has_gaussian, b.has_gaussian);
     if (a.has_gaussian) {
-      ASSERT_EQ(a.mean, b.mean);
-      ASSERT_EQ(a.inv_cov, b.inv_cov);
+      ASSERT_EQ(map.grid().gaussians()[i].mean_vector(), m.grid().gaussians()[i].mean_vector());
+      ASSERT_EQ(map.grid().gaussians()[i].inv_cov_matrix(),
+                m.grid().gaussians()[i].inv_cov_matrix());
     }
     ASSERT_EQ(m.grid().index_of(a.key), static_cast<std::int64_t>(i));
   }
