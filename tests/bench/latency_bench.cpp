@@ -4,12 +4,13 @@
 // the last packet of its revolution to receiving its datagram. Prints p50/p90/p99/max, the
 // scans the daemon dropped, and the daemon's own final health line.
 //
-//   latency_bench CNDTD [SECONDS=60] [mapper] [realtime] [scoring=N]
+//   latency_bench CNDTD [SECONDS=60] [mapper] [realtime] [scoring=N] [csv=FILE]
 //
 // With `realtime` the daemon runs as configured for a vehicle computer ([runtime] realtime =
 // true: memory locked, the odometry thread SCHED_FIFO and pinned to the last CPU, the mapper to
 // the first); it needs the privilege (root or CAP_SYS_NICE), else the daemon warns and runs on.
-// scoring=N sets [runtime] scoring_threads (default: the configuration's default).
+// scoring=N sets [runtime] scoring_threads (default: the configuration's default). csv=FILE
+// writes each scan's latency (scan index, stamp, milliseconds) to FILE.
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -43,13 +44,15 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::cerr << "usage: latency_bench CNDTD [SECONDS=60] [mapper] [realtime] [scoring=N]\n";
+    std::cerr << "usage: latency_bench CNDTD [SECONDS=60] [mapper] [realtime] [scoring=N] "
+                 "[csv=FILE]\n";
     return 2;
   }
   const std::string cndtd = argv[1];
   const double seconds = argc > 2 ? std::stod(argv[2]) : 60.0;
   bool mapper = false, realtime = false;
-  std::string scoring;  // [runtime] scoring_threads, empty: the default
+  std::string scoring;   // [runtime] scoring_threads, empty: the default
+  std::string csv_path;  // per-scan latencies, empty: none
   for (int i = 3; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "mapper") {
@@ -59,8 +62,11 @@ int main(int argc, char** argv) {
     } else if (a.starts_with("scoring=") && a.size() > 8 &&
                a.find_first_not_of("0123456789", 8) == std::string::npos) {
       scoring = a.substr(8);
+    } else if (a.starts_with("csv=") && a.size() > 4) {
+      csv_path = a.substr(4);
     } else {
-      std::cerr << "latency_bench: unknown argument '" << a << "' (mapper, realtime, scoring=N)\n";
+      std::cerr << "latency_bench: unknown argument '" << a
+                << "' (mapper, realtime, scoring=N, csv=FILE)\n";
       return 2;
     }
   }
@@ -153,6 +159,7 @@ int main(int argc, char** argv) {
   std::vector<std::int64_t> stamps;
   for (const auto& [s, t] : arrived) stamps.push_back(s);
   std::vector<double> latency_ms;
+  std::vector<std::pair<std::size_t, std::int64_t>> latency_scan;  // scan index and stamp
   std::size_t j = 0;
   for (std::size_t k = 0; k + 1 < stamps.size(); ++k) {
     const std::int64_t next = stamps[k + 1];
@@ -160,6 +167,15 @@ int main(int argc, char** argv) {
     while (j + 1 < packets.size() && in_hour(packets[j + 1].sensor_time_ns) < in_hour(next)) ++j;
     latency_ms.push_back(
         std::chrono::duration<double, std::milli>(arrived[stamps[k]] - sent[j]).count());
+    latency_scan.emplace_back(k, stamps[k]);
+  }
+  if (!csv_path.empty()) {
+    std::ofstream csv(csv_path);
+    csv << "scan,stamp_ns,latency_ms\n";
+    for (std::size_t i = 0; i < latency_ms.size(); ++i) {
+      csv << latency_scan[i].first << ',' << latency_scan[i].second << ',' << latency_ms[i] << '\n';
+    }
+    if (!csv) std::cerr << "latency_bench: cannot write " << csv_path << "\n";
   }
   std::ifstream log_in(log_path);
   std::string line, final_line;
