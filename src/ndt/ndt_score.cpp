@@ -46,15 +46,9 @@ PoseDerivatives::PoseDerivatives(const core::Pose6& x) : t_(x.head<3>()) {
   R_ = R(0, 0, 0);
   d1_ = {R(1, 0, 0), R(0, 1, 0), R(0, 0, 1)};
   d2_ = {R(2, 0, 0), R(1, 1, 0), R(1, 0, 1), R(0, 2, 0), R(0, 1, 1), R(0, 0, 2)};
-}
-
-void PoseDerivatives::jacobian(const Eigen::Vector3d& p, Eigen::Matrix<double, 3, 6>& J) const {
-  J.leftCols<3>().setIdentity();
-  for (int a = 0; a < 3; ++a) J.col(3 + a) = d1_[static_cast<std::size_t>(a)] * p;
-}
-
-void PoseDerivatives::second(const Eigen::Vector3d& p, std::array<Eigen::Vector3d, 6>& d2) const {
-  for (std::size_t i = 0; i < 6; ++i) d2[i] = d2_[i] * p;
+  const double sphi = std::sin(phi), cphi = std::cos(phi);
+  const double stheta = std::sin(theta), ctheta = std::cos(theta);
+  W_ << 1.0, 0.0, stheta, 0.0, cphi, -sphi * ctheta, 0.0, sphi, cphi * ctheta;
 }
 
 namespace {
@@ -160,7 +154,6 @@ struct ScoreJob {
   const VoxelGrid* grid;
   std::span<const Eigen::Vector3d> points;
   const PoseDerivatives* pd;
-  Eigen::Vector3d t;  // the pose's translation
   Eigen::Vector3d mv, mw;
   bool derivatives;
   VoxelMask mask;
@@ -188,7 +181,7 @@ void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partia
   // where b = sum e_v a_v and M = sum e_v (A_v - a_v a_v^T). Summing b and M over the voxels
   // first leaves one Jacobian product per point.
   // J's rotation columns dR/dangle_k p are w_k x r for r = R p and the fixed axes w_k of the
-  // Euler angles (x, then y turned by the first angle, then z turned by both): J_r = -[r]x W.
+  // Euler angles (PoseDerivatives::axes(), the columns of W): J_r = -[r]x W.
   // So J_r^T M J_r = -W^T ([r]x M [r]x) W and M J_r = -(M [r]x) W: per point only the
   // symmetric N = [r]x M [r]x and C = M [r]x are summed, and W applied once per scoring.
   // The terms linear in b are sums of b^T D p for matrices D fixed by the pose (dR/dangle_k for
@@ -270,7 +263,8 @@ void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partia
     out.h_tt += m;
     // C += M [r]x: row i is M's row i crossed with r. N += [r]x (M [r]x): column j is r crossed
     // with column j of M [r]x (symmetric: six entries).
-    const double r0 = v.x() - job.t.x(), r1 = v.y() - job.t.y(), r2 = v.z() - job.t.z();
+    const Eigen::Vector3d& t = pd.translation();
+    const double r0 = v.x() - t.x(), r1 = v.y() - t.y(), r2 = v.z() - t.z();
     Eigen::Matrix3d K;
     K << m(1) * r2 - m(2) * r1, m(2) * r0 - m(0) * r2, m(0) * r1 - m(1) * r0,  //
         m(3) * r2 - m(4) * r1, m(4) * r0 - m(1) * r2, m(1) * r1 - m(3) * r0,   //
@@ -327,7 +321,6 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
   ScoreJob job{&grid,
                points,
                &pd,
-               x.head<3>(),
                mv,
                mw,
                derivatives,
@@ -361,11 +354,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
     if (motion == nullptr) sum.Bh = sum.Bg;
     Eigen::Vector3d g_r;
     for (int k = 0; k < 3; ++k) g_r(k) = pd.d1(k).cwiseProduct(sum.Bg).sum();
-    // The rotation axes W of the Euler angles (score_range).
-    const double sphi = std::sin(x[3]), cphi = std::cos(x[3]);
-    const double stheta = std::sin(x[4]), ctheta = std::cos(x[4]);
-    Eigen::Matrix3d W;
-    W << 1.0, 0.0, stheta, 0.0, cphi, -sphi * ctheta, 0.0, sphi, cphi * ctheta;
+    const Eigen::Matrix3d& W = pd.axes();  // score_range
     const Eigen::Matrix3d h_tr = -sum.C * W;
     Eigen::Matrix3d h_rr = -W.transpose() * full(sum.N) * W;
     for (int k = 0; k < 3; ++k) {

@@ -22,19 +22,20 @@ class PoseDerivatives {
  public:
   explicit PoseDerivatives(const core::Pose6& x);
   [[nodiscard]] Eigen::Vector3d transform(const Eigen::Vector3d& p) const { return R_ * p + t_; }
-  /// dv/dx (3 x 6): identity for the translation, dR/d(angle) p for the rotation.
-  void jacobian(const Eigen::Vector3d& p, Eigen::Matrix<double, 3, 6>& J) const;
-  /// d2v/d(angle_a) d(angle_b) p for (a, b) = (0,0) (0,1) (0,2) (1,1) (1,2) (2,2).
-  void second(const Eigen::Vector3d& p, std::array<Eigen::Vector3d, 6>& d2) const;
   [[nodiscard]] const Eigen::Matrix3d& rotation() const { return R_; }
+  [[nodiscard]] const Eigen::Vector3d& translation() const { return t_; }
   /// dR/d(angle k), k = 0 (phi), 1 (theta), 2 (psi).
   [[nodiscard]] const Eigen::Matrix3d& d1(int k) const { return d1_[static_cast<std::size_t>(k)]; }
-  /// Second derivatives in the order of second().
+  /// d2R/d(angle_a) d(angle_b) for (a, b) = (0,0) (0,1) (0,2) (1,1) (1,2) (2,2).
   [[nodiscard]] const Eigen::Matrix3d& d2(int i) const { return d2_[static_cast<std::size_t>(i)]; }
+  /// The axes w_k the three angles turn about, as columns: x, y turned by phi, z turned by phi
+  /// and theta. dR/d(angle k) p = w_k x (R p).
+  [[nodiscard]] const Eigen::Matrix3d& axes() const { return W_; }
 
  private:
   Eigen::Matrix3d R_;
   Eigen::Vector3d t_;
+  Eigen::Matrix3d W_;
   std::array<Eigen::Matrix3d, 3> d1_;
   std::array<Eigen::Matrix3d, 6> d2_;
 };
