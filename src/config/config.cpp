@@ -134,7 +134,11 @@ const std::vector<Field>& fields() {
        "(paper: 0.7).",
        "", 0, 1},
       {"odometry", "scan_cell_m", CNDT_REF(odometry.scan_cell_m),
-       "Downsampling of the scan being matched.", "m", 0.01, 10},
+       "Downsampling of the scan being matched: the cell centroids are the points matched. "
+       "Cells as large as the voxels make the score ripple along every plane (the centroids of "
+       "an evenly sampled surface line up with the voxel means once per cell of motion; "
+       "docs/odometry.md).",
+       "m", 0.01, 10},
       {"odometry", "map_cell_m", CNDT_REF(odometry.map_cell_m),
        "Downsampling of scans added to the reference and used for Cv.", "m", 0.01, 10},
       {"odometry", "min_range_m", CNDT_REF(odometry.min_range_m),
@@ -154,6 +158,12 @@ const std::vector<Field>& fields() {
        "Points the local-map scans hold together (one buffer, allocated once, at least "
        "max_points); when a new scan does not fit, the oldest scans leave until it does.",
        "points", 1000, 100'000'000},
+      {"odometry", "map_admit_distance_m", CNDT_REF(odometry.map_admit_distance_m),
+       "A scan taken into the local map is matched against only once the predicted pose is this "
+       "far from where it was taken (or turned 2 deg from it): near its own pose a scan's ring "
+       "pattern pulls the next scans' matches towards zero motion, which holds a slow vehicle "
+       "(0 = at once; docs/odometry.md).",
+       "m", 0, 100},
       {"odometry", "max_map_voxels", CNDT_REF(odometry.max_map_voxels),
        "Voxel capacity of the reference NDT (allocated once).", "voxels", 1000, 50'000'000},
       {"odometry", "min_points", CNDT_REF(odometry.min_points),

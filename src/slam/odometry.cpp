@@ -61,6 +61,7 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   const std::size_t slots =
       o.reference == Reference::kPreviousScan ? 1 : std::max<std::size_t>(1, o.local_map_scans);
   history_.resize(slots);
+  history_pose_.resize(slots);
   history_pool_.assign(std::max(o.local_map_points, o.max_scan_points), zero);  // written
   core::reserve_resident(mask_, o.max_map_voxels);
   core::reserve_resident(cv_, o.max_map_voxels);
@@ -219,13 +220,16 @@ double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>
 }
 
 void ConsensusOdometry::drop_oldest() {
-  remove_from_grids(history_points(history_[history_head_]));
+  if (in_grids_ > 0) {
+    remove_from_grids(history_points(history_[history_head_]));
+    --in_grids_;
+  }
   history_head_ = (history_head_ + 1) % history_.size();
   --history_size_;
 }
 
 void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
-                                     const Eigen::Isometry3d& pose) {
+                                     const Eigen::Isometry3d& pose, bool to_grids) {
   const std::size_t capacity = history_pool_.size();
   const std::size_t n = std::min(points.size(), capacity);
   if (history_size_ == history_.size()) drop_oldest();
@@ -242,15 +246,38 @@ void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
     if (!oldest.overlaps(region) && !(wraps && oldest.offset >= end)) break;
     drop_oldest();
   }
-  history_[(history_head_ + history_size_) % history_.size()] = region;
+  const std::size_t slot = (history_head_ + history_size_) % history_.size();
+  history_[slot] = region;
+  history_pose_[slot] = pose;
   ++history_size_;
   for (std::size_t i = 0; i < n; ++i) history_pool_[region.offset + i] = pose * points[i];
+  if (!to_grids) return;
+  while (in_grids_ + 1 < history_size_) {  // the waiting ones go first, in order
+    add_to_grids(history_points(history_[(history_head_ + in_grids_) % history_.size()]));
+    ++in_grids_;
+  }
   add_to_grids(history_points(region));  // a full grid refuses points: compacted below
+  ++in_grids_;
   finalize_grids();
 }
 
+void ConsensusOdometry::admit_pending(const Eigen::Isometry3d& next) {
+  bool added = false;
+  while (in_grids_ < history_size_) {
+    const std::size_t k = (history_head_ + in_grids_) % history_.size();
+    const Eigen::Isometry3d d = history_pose_[k].inverse() * next;
+    const bool far = d.translation().norm() >= options_.map_admit_distance ||
+                     Eigen::AngleAxisd(d.linear()).angle() >= options_.map_min_rotation;
+    if (!far && in_grids_ > 0) break;
+    add_to_grids(history_points(history_[k]));  // a full grid refuses points: compacted below
+    ++in_grids_;
+    added = true;
+  }
+  if (added) finalize_grids();
+}
+
 void ConsensusOdometry::reference_points(std::vector<Eigen::Vector3d>& out) const {
-  for (std::size_t i = 0; i < history_size_; ++i) {
+  for (std::size_t i = 0; i < in_grids_; ++i) {
     const auto pts = history_points(history_[(history_head_ + i) % history_.size()]);
     out.insert(out.end(), pts.begin(), pts.end());
   }
@@ -260,9 +287,13 @@ void ConsensusOdometry::replace_newest(const std::vector<Eigen::Vector3d>& point
                                        const Eigen::Isometry3d& pose) {
   // The newest scan leaves, and `points` take its place.
   const std::size_t newest = (history_head_ + history_size_ - 1) % history_.size();
-  remove_from_grids(history_points(history_[newest]));
+  const bool in_grids = in_grids_ == history_size_;
+  if (in_grids) {
+    remove_from_grids(history_points(history_[newest]));
+    --in_grids_;
+  }
   --history_size_;
-  push_history(points, pose);
+  push_history(points, pose, in_grids);
 }
 
 void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
@@ -275,9 +306,15 @@ void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
   const bool due = history_size_ == 0 || options_.reference == Reference::kPreviousScan ||
                    since.translation().norm() >= min_translation ||
                    Eigen::AngleAxisd(since.linear()).angle() >= options_.map_min_rotation;
-  if (!due) return;
-  push_history(cv_points_, pose);
-  last_keyframe_pose_ = pose;
+  if (due) {
+    // The previous-scan reference and the first scan are matched against at once.
+    push_history(cv_points_, pose,
+                 options_.reference == Reference::kPreviousScan || history_size_ == 0 ||
+                     options_.map_admit_distance <= 0.0);
+    last_keyframe_pose_ = pose;
+  }
+  // The next scan's pose under constant velocity (prev_motion_ is this scan's motion).
+  admit_pending(pose * prev_motion_);
 }
 
 bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
@@ -386,7 +423,9 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   // Not while the newest reference scan is still undistorted (below).
   solve_motion_ = options_.deskew && period_s_ > 0.0 && !newest_unskewed_;
   std::optional<Eigen::Isometry3d> first_velocity;  // motion per period, from the first match
-  if (test_.size() < options_.min_points) {
+  // A revolution mostly lost is not matched: what is left can still be many points, but from a
+  // few sectors, which leave the pose poorly fixed and the deskew little to go by.
+  if (test_.size() < options_.min_points || scan.lost_packets > scan.packets) {
     res.flags |= kOdomTooFewPoints;
     res.pose = predicted;
     deskew_scan(predicted_deskew);

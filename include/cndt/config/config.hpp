@@ -36,7 +36,7 @@ struct Config {
     std::string reference = "local-map";  ///< local-map | previous-scan
     double voxel_size_m = 0.5;
     double eta = 0.7;
-    double scan_cell_m = 0.5;
+    double scan_cell_m = 0.25;
     double map_cell_m = 0.1;
     double min_range_m = 1.0;
     double max_range_m = 100.0;
@@ -44,6 +44,7 @@ struct Config {
     std::int64_t deskew_refinements = 2;
     std::int64_t local_map_scans = 60;
     std::int64_t local_map_points = 1'500'000;
+    double map_admit_distance_m = 0.5;
     std::int64_t max_map_voxels = 400'000;
     std::int64_t min_points = 200;
     double max_acceleration_mps2 = 10.0;

@@ -39,8 +39,19 @@ struct OdometryOptions {
   /// Until the local map holds this many scans, they enter after map_warmup_translation.
   std::size_t map_warmup_scans = 10;
   double map_warmup_translation = 0.3;  ///< m
-  double voxel_size = 0.5;              ///< L of the reference NDT, m (paper: 0.5)
-  double scan_cell = 0.5;               ///< downsampling of the scan being matched, m
+  /// A scan taken into the local map is matched against only once the predicted sensor pose is
+  /// this far from where it was taken (or turned map_min_rotation from it); the first scan at
+  /// once. Near its own pose a scan's sampling pattern (ring arcs on the floor, ring lines on
+  /// walls) lines up with the next scans' and pulls their matches towards zero motion; a slow
+  /// vehicle would be held there (docs/odometry.md). 0 = at once.
+  double map_admit_distance = 0.5;  ///< m
+  double voxel_size = 0.5;          ///< L of the reference NDT, m (paper: 0.5)
+  /// Downsampling of the scan being matched, m. The cell centroids of a surface sampled evenly
+  /// lie at the cell centres; with cells as large as the voxels they line up with the voxel
+  /// means once per cell of motion, and the score ripples along every plane with that period
+  /// (along an evenly sampled wall it swings by 76 % of its mean at 0.5 m cells, 0.8 % at
+  /// 0.25 m; docs/odometry.md).
+  double scan_cell = 0.25;
   double map_cell = 0.1;  ///< downsampling of scans added to the reference and used for Cv, m
   double eta = 0.7;       ///< Cv threshold (paper: 0.7)
   double min_range = 1.0, max_range = 100.0;  ///< m; nearer points are the vehicle itself
@@ -119,9 +130,11 @@ struct OdometryOptions {
 std::size_t cv_dof_capacity(const OdometryOptions& options);
 
 enum OdometryFlags : std::uint32_t {
-  kOdomFirstScan = 1u << 0,       ///< starts the trajectory: identity pose
-  kOdomNotConverged = 1u << 1,    ///< iteration cap reached
-  kOdomTooFewPoints = 1u << 2,    ///< not matched; the prediction is reported
+  kOdomFirstScan = 1u << 0,     ///< starts the trajectory: identity pose
+  kOdomNotConverged = 1u << 1,  ///< iteration cap reached
+  /// Not matched (too few points, or more of the revolution's packets lost than received); the
+  /// prediction is reported.
+  kOdomTooFewPoints = 1u << 2,
   kOdomDegenerate = 1u << 3,      ///< the geometry does not fix the pose (Cm reported as 0)
   kOdomScanIncomplete = 1u << 4,  ///< the scan was partial, lossy or cut
   kOdomSkipped = 1u << 5,  ///< a partial first revolution, not used: no pose (the next one starts)
@@ -167,8 +180,10 @@ class ConsensusOdometry {
     return options_.deskew_to_mid_scan ? stamp_points_ : cv_points_;
   }
   /// Scans the reference holds now (local map: at most local_map_scans, and fewer when their
-  /// points fill local_map_points).
-  [[nodiscard]] std::size_t reference_scans() const { return history_size_; }
+  /// points fill local_map_points), not counting those waiting for map_admit_distance.
+  [[nodiscard]] std::size_t reference_scans() const { return in_grids_; }
+  /// Scans taken into the local map that wait for map_admit_distance.
+  [[nodiscard]] std::size_t pending_reference_scans() const { return history_size_ - in_grids_; }
   /// The reference grid and the points of the scans it holds now (odometry frame), appended to
   /// `out`: the grid's sums are those of exactly these points.
   [[nodiscard]] const ndt::VoxelGrid& reference_grid() const { return grid_; }
@@ -226,16 +241,25 @@ class ConsensusOdometry {
   std::vector<Eigen::Vector3d> stamp_points_;  // deskew_to_mid_scan: cv_points_ at the stamp
   Eigen::Isometry3d test_motion_ = Eigen::Isometry3d::Identity();    // last deskew_for motion
   Eigen::Isometry3d deskewed_with_ = Eigen::Isometry3d::Identity();  // last deskew_scan motion
-  // Reference scans in the odometry frame: a ring of up to local_map_scans entries, oldest
+  // The local map's scans in the odometry frame: a ring of up to local_map_scans entries, oldest
   // first, whose points lie one after the other in a circular buffer of local_map_points.
   std::span<const Eigen::Vector3d> history_points(const core::RingRegion& h) const {
     return std::span<const Eigen::Vector3d>(history_pool_).subspan(h.offset, h.count);
   }
   void drop_oldest();  // the oldest scan leaves the reference
-  void push_history(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
+  // Appends a scan to the local map, into the grids at once when `to_grids` (otherwise it waits
+  // for admit_pending).
+  void push_history(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose,
+                    bool to_grids);
+  // Adds the waiting scans, oldest first, that lie map_admit_distance or more from `next` (the
+  // predicted pose of the next scan) to the grids; any when the grids hold none.
+  void admit_pending(const Eigen::Isometry3d& next);
   std::vector<Eigen::Vector3d> history_pool_;
   std::vector<core::RingRegion> history_;
-  std::size_t history_head_ = 0, history_size_ = 0;
+  std::vector<Eigen::Isometry3d> history_pose_;  // where each scan was taken
+  // The local map's scans, oldest first; the first in_grids_ of them are in the grids, the
+  // rest wait for admit_pending.
+  std::size_t history_head_ = 0, history_size_ = 0, in_grids_ = 0;
   Eigen::Isometry3d last_keyframe_pose_ = Eigen::Isometry3d::Identity();
   // estimate() has left the reference update of its scan, at prev_pose_, to commit().
   bool reference_due_ = false;

@@ -5,6 +5,7 @@
 #include <random>
 
 #include "cndt/core/small_angle.hpp"
+#include "cndt/ndt/ndt_score.hpp"
 #include "cndt/ndt/voxel_grid.hpp"
 #include "cndt/slam/downsample.hpp"
 #include "cndt/slam/odometry.hpp"
@@ -96,6 +97,52 @@ std::vector<TimedPose> line(int n, double step, double yaw_rate = 0.0) {
     v.push_back(p);
   }
   return v;
+}
+
+// A wall sampled evenly, matched against its own NDT while the pose slides along it: the score
+// should not care where the sensor stands along a plane. The matched points are the centroids of
+// scan_cell cells, which lie at the cell centres on an even surface; with cells as large as the
+// voxels they line up with the voxel means once per cell of motion and the score ripples with
+// that period (held the corridor's matches on a ripple, docs/odometry.md). With the default
+// cell the ripple is gone.
+double ripple_along_a_wall(double scan_cell) {
+  std::vector<Eigen::Vector3d> wall, scan;
+  for (int i = -500; i < 500; ++i) {
+    for (int k = -50; k < 100; ++k) wall.emplace_back(0.02 * i + 0.01, 2.0, 0.02 * k + 0.01);
+  }
+  const double sensor_x = 0.13;  // anywhere along the wall
+  for (const Eigen::Vector3d& p : wall) {
+    if (std::abs(p.x()) < 6.0) scan.push_back(p - Eigen::Vector3d(sensor_x, 0.0, 0.0));
+  }
+  std::vector<Eigen::Vector3d> map_points, matched;
+  Downsampler(0.1, wall.size()).run(wall, map_points);
+  Downsampler(scan_cell, scan.size()).run(scan, matched);
+  ndt::VoxelGrid grid({0.5, 10'000});
+  for (const Eigen::Vector3d& p : map_points) grid.add(p);
+  grid.finalize();
+  double lo = 0.0, hi = -1e300, sum = 0.0;
+  const int steps = 40;
+  for (int i = 0; i < steps; ++i) {
+    core::Pose6 x = core::Pose6::Zero();
+    x(0) = sensor_x + 0.5 * i / steps;  // one voxel of motion
+    const double s =
+        ndt::ndt_score(grid, matched, x, false, nullptr, ndt::Neighbours::kSeven).score;
+    lo = i == 0 ? s : std::min(lo, s);
+    hi = std::max(hi, s);
+    sum += s;
+  }
+  return (hi - lo) / std::abs(sum / steps);
+}
+
+TEST(Downsampler, DefaultScanCellLeavesNoRippleAlongAPlane) {
+  const double at_default = ripple_along_a_wall(OdometryOptions{}.scan_cell);
+  const double at_voxel_size = ripple_along_a_wall(OdometryOptions{}.voxel_size);
+  std::printf(
+      "score ripple along a wall over one voxel of motion: %.4f with %.2f m cells, "
+      "%.4f with %.2f m cells\n",
+      at_default, OdometryOptions{}.scan_cell, at_voxel_size, OdometryOptions{}.voxel_size);
+  EXPECT_LT(at_default, 0.02);
+  EXPECT_GT(at_voxel_size, 0.1);  // the ripple this guards against
 }
 
 TEST(TrajectoryEval, IdenticalAndRigidlyMovedEstimatesHaveNoError) {
