@@ -104,7 +104,8 @@ std::vector<TimedPose> line(int n, double step, double yaw_rate = 0.0) {
 // scan_cell cells, which lie at the cell centres on an even surface; with cells as large as the
 // voxels they line up with the voxel means once per cell of motion and the score ripples with
 // that period (held the corridor's matches on a ripple, docs/odometry.md). With the default
-// cell the ripple is gone.
+// cell the ripple is gone. The window is one voxel of motion: right for cells that divide the
+// voxel size; others ripple with longer periods than it sees.
 double ripple_along_a_wall(double scan_cell) {
   std::vector<Eigen::Vector3d> wall, scan;
   for (int i = -500; i < 500; ++i) {
