@@ -229,7 +229,7 @@ void ConsensusOdometry::drop_oldest() {
 }
 
 void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
-                                     const Eigen::Isometry3d& pose, bool to_grids) {
+                                     const Eigen::Isometry3d& pose) {
   const std::size_t capacity = history_pool_.size();
   const std::size_t n = std::min(points.size(), capacity);
   if (history_size_ == history_.size()) drop_oldest();
@@ -251,14 +251,6 @@ void ConsensusOdometry::push_history(const std::vector<Eigen::Vector3d>& points,
   history_pose_[slot] = pose;
   ++history_size_;
   for (std::size_t i = 0; i < n; ++i) history_pool_[region.offset + i] = pose * points[i];
-  if (!to_grids) return;
-  while (in_grids_ + 1 < history_size_) {  // the waiting ones go first, in order
-    add_to_grids(history_points(history_[(history_head_ + in_grids_) % history_.size()]));
-    ++in_grids_;
-  }
-  add_to_grids(history_points(region));  // a full grid refuses points: compacted below
-  ++in_grids_;
-  finalize_grids();
 }
 
 void ConsensusOdometry::admit_pending(const Eigen::Isometry3d& next) {
@@ -287,13 +279,13 @@ void ConsensusOdometry::replace_newest(const std::vector<Eigen::Vector3d>& point
                                        const Eigen::Isometry3d& pose) {
   // The newest scan leaves, and `points` take its place.
   const std::size_t newest = (history_head_ + history_size_ - 1) % history_.size();
-  const bool in_grids = in_grids_ == history_size_;
-  if (in_grids) {
+  if (in_grids_ == history_size_) {
     remove_from_grids(history_points(history_[newest]));
     --in_grids_;
   }
   --history_size_;
-  push_history(points, pose, in_grids);
+  push_history(points, pose);
+  admit_pending(pose);  // back into the grids if it was the only scan there
 }
 
 void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
@@ -307,13 +299,12 @@ void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
                    since.translation().norm() >= min_translation ||
                    Eigen::AngleAxisd(since.linear()).angle() >= options_.map_min_rotation;
   if (due) {
-    // The previous-scan reference and the first scan are matched against at once.
-    push_history(cv_points_, pose,
-                 options_.reference == Reference::kPreviousScan || history_size_ == 0 ||
-                     options_.map_admit_distance <= 0.0);
+    push_history(cv_points_, pose);
     last_keyframe_pose_ = pose;
   }
-  // The next scan's pose under constant velocity (prev_motion_ is this scan's motion).
+  // At the next scan's pose under constant velocity (prev_motion_ is this scan's motion). The
+  // first scan, and every scan of the previous-scan reference (which holds one), find the grids
+  // empty and go in at once.
   admit_pending(pose * prev_motion_);
 }
 

@@ -12,7 +12,7 @@
 #include "cndt/slam/map_file.hpp"
 #include "cndt/slam/odometry.hpp"
 #include "cndt/slam/trajectory_eval.hpp"
-#include "cndt/vlp16/driver.hpp"
+#include "sim_scans.hpp"
 
 namespace cndt::slam {
 namespace {
@@ -27,12 +27,6 @@ struct DriveRun {
 // when given), and collects both trajectories with the ground truth.
 DriveRun drive(sim::SceneKind kind, double seconds, std::uint64_t seed, std::uint64_t world_seed,
                Mapper& mapper) {
-  const sim::Scene scene = sim::build_scene(kind, seconds, 4, seed, world_seed);
-  sim::LidarSimOptions so;
-  so.duration_s = seconds;
-  so.seed = seed;
-  sim::LidarSimulator simulator(scene, so);
-  vlp16::Driver driver({});
   ConsensusOdometry odometry({});
   DriveRun run;
   auto collect = [&] {
@@ -41,22 +35,18 @@ DriveRun drive(sim::SceneKind kind, double seconds, std::uint64_t seed, std::uin
       if (!std::isnan(p.cm)) run.map_cm.push_back(p.cm);
     }
   };
-  auto sink = [&](core::Scan& scan) {
-    const OdometryResult r = odometry.process(scan);
-    if ((r.flags & (kOdomSkipped | kOdomTooFewPoints)) != 0) return;
-    const double t = static_cast<double>(scan.stamp.count()) * 1e-9;
-    run.odometry.push_back({t, r.pose});
-    mapper.add(t, r.pose, odometry.scan_points());
-    collect();
-  };
-  sim::SimPacket p;
-  while (simulator.next(p)) {
-    driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
-  }
-  driver.finish(sink);
+  const auto starts = test::simulate_scene(
+      sim::build_scene(kind, seconds, 4, seed, world_seed), seconds, seed, [&](core::Scan& scan) {
+        const OdometryResult r = odometry.process(scan);
+        if ((r.flags & (kOdomSkipped | kOdomTooFewPoints)) != 0) return;
+        const double t = static_cast<double>(scan.stamp.count()) * 1e-9;
+        run.odometry.push_back({t, r.pose});
+        mapper.add(t, r.pose, odometry.scan_points());
+        collect();
+      });
   mapper.flush();
   collect();
-  for (const auto& s : simulator.scan_starts()) {
+  for (const auto& s : starts) {
     run.gt.push_back({static_cast<double>(s.time_ns) * 1e-9, s.pose});
   }
   run.keyframes = mapper.stats().keyframes;
@@ -77,23 +67,13 @@ TEST(Mapper, Eq7GradientEqualsFiniteDifferences) {
   Mapper mapper(o);
   std::vector<Eigen::Isometry3d> poses;
   int n = 0;
-  const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 1.0, 2, 5);
-  sim::LidarSimOptions so;
-  so.duration_s = 1.0;
-  so.seed = 5;
-  sim::LidarSimulator simulator(scene, so);
-  vlp16::Driver driver({});
   ConsensusOdometry odometry({});
-  auto sink = [&](core::Scan& scan) {
+  test::simulate_scans(sim::SceneKind::kStreet, 1.0, 2, 5, [&](core::Scan& scan) {
     const OdometryResult r = odometry.process(scan);
     if ((r.flags & kOdomSkipped) != 0 || n >= 6) return;
     mapper.add(0.1 * n, r.pose, odometry.scan_points());
     if (n++ >= 3) poses.push_back(mapper.correction() * r.pose);
-  };
-  sim::SimPacket p;
-  while (simulator.next(p)) {
-    driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
-  }
+  });
   ASSERT_EQ(mapper.open_scans(), 3u);
   ASSERT_GT(mapper.map().gaussians(), 1000u);
   std::mt19937 rng(3);

@@ -27,6 +27,18 @@ std::vector<sim::ScanStart> drive_street(double seconds, int movers, std::uint64
   return test::simulate_scans(sim::SceneKind::kStreet, seconds, movers, seed, sink);
 }
 
+// The simulator's scan starts from the first estimated pose on: the ground truth of `est`, pose
+// for pose (at least as many).
+std::vector<TimedPose> truth_from_first(const std::vector<sim::ScanStart>& starts,
+                                        const std::vector<TimedPose>& est) {
+  std::vector<TimedPose> gt;
+  for (const auto& s : starts) {
+    const double t = static_cast<double>(s.time_ns) * 1e-9;
+    if (!est.empty() && t >= est.front().t - 1e-4) gt.push_back({t, s.pose});
+  }
+  return gt;
+}
+
 // Share of the matched scans of a drive flagged degenerate; checks that each flagged pose is
 // reported with Cm = 0 and each other one has a well-conditioned Hessian.
 double degenerate_share(sim::SceneKind kind, double seconds) {
@@ -95,11 +107,7 @@ TEST(Odometry, TracksAStreetDriveStartedAtSpeedFrameToFrame) {
     // Only the first scan, a partial revolution, is left out.
     EXPECT_EQ(skipped, 1);
     // The simulator's scan starts from the first tracked scan on.
-    std::vector<TimedPose> gt;
-    for (const auto& s : starts) {
-      const double t = static_cast<double>(s.time_ns) * 1e-9;
-      if (!est.empty() && t >= est.front().t - 1e-4) gt.push_back({t, s.pose});
-    }
+    const std::vector<TimedPose> gt = truth_from_first(starts, est);
     ASSERT_GE(est.size(), 28u);
     ASSERT_GE(gt.size(), est.size());
     for (std::size_t i = 0; i < est.size(); ++i) ASSERT_NEAR(gt[i].t, est[i].t, 1e-4);
@@ -142,35 +150,20 @@ double corridor_path_ratio(double admit_distance) {
   std::vector<TimedPose> est;
   std::size_t most_pending = 0;
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kCorridor, 60.0, 4, 1);
-  sim::LidarSimOptions so;
-  so.duration_s = 1.0;
-  so.seed = 1;
-  sim::LidarSimulator simulator(scene, so);
-  vlp16::Driver driver({});
-  auto sink = [&](core::Scan& scan) {
+  const auto starts = test::simulate_scene(scene, 1.0, 1, [&](core::Scan& scan) {
     const OdometryResult r = odometry.process(scan);
     EXPECT_TRUE(r.pose.matrix().allFinite());
     most_pending = std::max(most_pending, odometry.pending_reference_scans());
     if ((r.flags & kOdomSkipped) == 0) {
       est.push_back({static_cast<double>(scan.stamp.count()) * 1e-9, r.pose});
     }
-  };
-  sim::SimPacket p;
-  while (simulator.next(p)) {
-    driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
-  }
-  driver.finish(sink);
-  const auto starts = simulator.scan_starts();
+  });
   if (admit_distance > 0.0) {
     EXPECT_GT(most_pending, 0u);
   } else {
     EXPECT_EQ(most_pending, 0u);
   }
-  std::vector<TimedPose> gt;
-  for (const auto& s : starts) {
-    const double t = static_cast<double>(s.time_ns) * 1e-9;
-    if (!est.empty() && t >= est.front().t - 1e-4) gt.push_back({t, s.pose});
-  }
+  const std::vector<TimedPose> gt = truth_from_first(starts, est);
   EXPECT_GE(est.size(), 8u);
   EXPECT_GE(gt.size(), est.size());
   if (est.size() < 2 || gt.size() < est.size()) return 0.0;
@@ -373,11 +366,7 @@ TEST(Odometry, LocalMapBoundedByPointsWrapsAndStillTracks) {
     }
     EXPECT_LE(most_scans, 14u);  // 200k points of 14-18k-point scans
     EXPECT_GE(most_scans, 10u);
-    std::vector<TimedPose> gt;
-    for (const auto& s : starts) {
-      const double t = static_cast<double>(s.time_ns) * 1e-9;
-      if (!est.empty() && t >= est.front().t - 1e-4) gt.push_back({t, s.pose});
-    }
+    const std::vector<TimedPose> gt = truth_from_first(starts, est);
     ASSERT_GE(gt.size(), est.size());
     std::vector<double> errors;
     for (std::size_t i = 0; i + 1 < est.size(); ++i) {

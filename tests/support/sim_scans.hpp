@@ -12,13 +12,12 @@
 
 namespace cndt::test {
 
-/// Simulates `seconds` of a `kind` drive with `movers` (`seed` for world, traffic and noise) and
+/// Simulates the first `seconds` of driving through `scene` (`seed` for the sensor's noise) and
 /// hands every scan the driver assembles to `sink`, the last partial one included. Returns the
 /// simulator's scan starts (ground truth).
 template <class Sink>
-std::vector<sim::ScanStart> simulate_scans(sim::SceneKind kind, double seconds, int movers,
+std::vector<sim::ScanStart> simulate_scene(const sim::Scene& scene, double seconds,
                                            std::uint64_t seed, Sink&& sink) {
-  const sim::Scene scene = sim::build_scene(kind, seconds, movers, seed);
   sim::LidarSimOptions o;
   o.duration_s = seconds;
   o.seed = seed;
@@ -30,6 +29,13 @@ std::vector<sim::ScanStart> simulate_scans(sim::SceneKind kind, double seconds, 
   }
   driver.finish(sink);
   return simulator.scan_starts();
+}
+
+/// The same for `seconds` of a `kind` drive with `movers` (`seed` for world, traffic and noise).
+template <class Sink>
+std::vector<sim::ScanStart> simulate_scans(sim::SceneKind kind, double seconds, int movers,
+                                           std::uint64_t seed, Sink&& sink) {
+  return simulate_scene(sim::build_scene(kind, seconds, movers, seed), seconds, seed, sink);
 }
 
 /// The scans of such a drive with 4 movers, collected.

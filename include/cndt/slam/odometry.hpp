@@ -247,10 +247,8 @@ class ConsensusOdometry {
     return std::span<const Eigen::Vector3d>(history_pool_).subspan(h.offset, h.count);
   }
   void drop_oldest();  // the oldest scan leaves the reference
-  // Appends a scan to the local map, into the grids at once when `to_grids` (otherwise it waits
-  // for admit_pending).
-  void push_history(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose,
-                    bool to_grids);
+  // Appends a scan to the local map; it waits for admit_pending to enter the grids.
+  void push_history(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   // Adds the waiting scans, oldest first, that lie map_admit_distance or more from `next` (the
   // predicted pose of the next scan) to the grids; any when the grids hold none.
   void admit_pending(const Eigen::Isometry3d& next);
