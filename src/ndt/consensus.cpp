@@ -32,9 +32,13 @@ double voxel_consensus(double rss, std::uint32_t n, const ChiSquareTable& table,
   return 1.0 / (1.0 + std::exp(-z));
 }
 
-void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
-                          const core::Pose6& x, VoxelResiduals& out) {
-  const PoseDerivatives pd(x);
+namespace {
+
+// Calls take(i, voxel index, residual) for each point in [begin, end) that falls in a voxel
+// with a Gaussian at pose x, in point order.
+template <class Take>
+void residuals_in(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
+                  const PoseDerivatives& pd, std::size_t begin, std::size_t end, Take take) {
   // Each point is placed and its voxel found kAhead points before its residual is taken, and
   // the voxel fetched into the cache meanwhile (see ndt_score).
   constexpr std::size_t kAhead = 8, kRing = kAhead + 1;
@@ -47,17 +51,72 @@ void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d
     found[j % kRing] = idx;
     if (idx >= 0) grid.prefetch_gaussian(idx);
   };
-  for (std::size_t j = 0; j < std::min(kAhead, points.size()); ++j) look_ahead(j);
-  for (std::size_t i = 0; i < points.size(); ++i) {
+  for (std::size_t j = begin; j < std::min(begin + kAhead, end); ++j) look_ahead(j);
+  for (std::size_t i = begin; i < end; ++i) {
     const Eigen::Vector3d v = placed[i % kRing];
     const std::int32_t idx = found[i % kRing];
-    if (i + kAhead < points.size()) look_ahead(i + kAhead);
+    if (i + kAhead < end) look_ahead(i + kAhead);
     if (idx < 0) continue;
     const Gaussian& g = grid.gaussians()[static_cast<std::size_t>(idx)];
     if (g.valid == 0) continue;
     Eigen::Vector3d a;
+    take(i, idx, g.mahalanobis(v, a));
+  }
+}
+
+struct ResidualJob {
+  const VoxelGrid* grid;
+  std::span<const Eigen::Vector3d> points;
+  const PoseDerivatives* pd;
+  std::int32_t* voxel;
+  double* residual;
+};
+
+// TaskRunner's task: chunk `chunk` of the ResidualJob at `context`.
+void residual_chunk(void* context, std::size_t chunk) {
+  const ResidualJob& job = *static_cast<ResidualJob*>(context);
+  const std::size_t n = job.points.size();
+  const std::size_t begin = n * chunk / kScoreChunks, end = n * (chunk + 1) / kScoreChunks;
+  std::fill(job.voxel + begin, job.voxel + end, -1);
+  residuals_in(*job.grid, job.points, *job.pd, begin, end,
+               [&](std::size_t i, std::int32_t idx, double r) {
+                 job.voxel[i] = idx;
+                 job.residual[i] = r;
+               });
+}
+
+}  // namespace
+
+void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
+                          const core::Pose6& x, VoxelResiduals& out) {
+  const PoseDerivatives pd(x);
+  residuals_in(grid, points, pd, 0, points.size(), [&](std::size_t, std::int32_t idx, double r) {
     out.count[static_cast<std::size_t>(idx)] += 1;
-    out.rss[static_cast<std::size_t>(idx)] += g.mahalanobis(v, a);
+    out.rss[static_cast<std::size_t>(idx)] += r;
+  });
+}
+
+ResidualAccumulator::ResidualAccumulator(std::size_t capacity)
+    : voxel_(capacity, -1), residual_(capacity, 0.0) {}
+
+void ResidualAccumulator::run(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
+                              const core::Pose6& x, VoxelResiduals& out, TaskRunner* runner) {
+  if (points.size() > voxel_.size()) {
+    accumulate_residuals(grid, points, x, out);
+    return;
+  }
+  const PoseDerivatives pd(x);
+  ResidualJob job{&grid, points, &pd, voxel_.data(), residual_.data()};
+  if (runner != nullptr && points.size() >= kParallelMinPoints) {
+    runner->run(kScoreChunks, &residual_chunk, &job);
+  } else {
+    for (std::size_t c = 0; c < kScoreChunks; ++c) residual_chunk(&job, c);
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (voxel_[i] < 0) continue;
+    const auto idx = static_cast<std::size_t>(voxel_[i]);
+    out.count[idx] += 1;
+    out.rss[idx] += residual_[i];
   }
 }
 

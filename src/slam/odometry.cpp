@@ -44,6 +44,7 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
       grid_({o.voxel_size, o.max_map_voxels, 5, 0.001, o.drop_ring_arcs}),
       chi2_(cv_dof_capacity(o)),
       lookup_cache_(o.max_scan_points),
+      residual_accumulator_(o.max_scan_points),
       map_sampler_(o.map_cell, o.max_scan_points),
       scan_sampler_(o.scan_cell, o.max_scan_points),
       jitter_state_(o.guess_jitter_seed) {
@@ -161,6 +162,34 @@ void ConsensusOdometry::jitter(core::Pose6& x) {
   }
 }
 
+namespace {
+// One deskew: the motion over a period as axis, angle and translation (Rodrigues' formula).
+struct DeskewJob {
+  std::span<const TimedPoint> in;
+  Eigen::Vector3d* out;
+  Eigen::Vector3d k, t;
+  double angle, inv_period;
+  bool mid;
+  Eigen::Isometry3d to_mid;
+};
+
+// TaskRunner's task: chunk `chunk` of the DeskewJob at `context`.
+void deskew_chunk(void* context, std::size_t chunk) {
+  const DeskewJob& job = *static_cast<DeskewJob*>(context);
+  const std::size_t n = job.in.size();
+  for (std::size_t i = n * chunk / ndt::kScoreChunks; i < n * (chunk + 1) / ndt::kScoreChunks;
+       ++i) {
+    const TimedPoint& p = job.in[i];
+    const double a = p.t * job.inv_period;
+    double s = 0.0, c1 = 0.0;
+    core::sin_versine(a * job.angle, s, c1);
+    const Eigen::Vector3d kxv = job.k.cross(p.p);
+    const Eigen::Vector3d at_stamp = p.p + s * kxv + c1 * job.k.cross(kxv) + a * job.t;
+    job.out[i] = job.mid ? Eigen::Vector3d(job.to_mid * at_stamp) : at_stamp;
+  }
+}
+}  // namespace
+
 void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
                                std::vector<Eigen::Vector3d>& out) const {
   out.clear();
@@ -170,22 +199,24 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   }
   // Sensor pose at a point's firing time relative to the scan stamp: the fraction a = t / period
   // of the motion over one scan period, its rotation by Rodrigues' formula about the fixed axis.
-  // With deskew_to_mid_scan, then into the frame at mid-revolution, half the motion on.
+  // With deskew_to_mid_scan, then into the frame at mid-revolution, half the motion on. Points
+  // are independent: in chunks, on the scorings' runner when there is one.
   const Eigen::AngleAxisd aa(motion.linear());
-  const Eigen::Vector3d k = aa.axis();
-  const double angle = aa.angle();
-  const Eigen::Vector3d t = motion.translation();
-  const double inv_period = 1.0 / period_s_;
   const bool mid = options_.deskew_to_mid_scan;
-  const Eigen::Isometry3d to_mid =
-      mid ? scale_motion(motion, 0.5).inverse() : Eigen::Isometry3d::Identity();
-  for (const TimedPoint& p : in) {
-    const double a = p.t * inv_period;
-    double s = 0.0, c1 = 0.0;
-    core::sin_versine(a * angle, s, c1);
-    const Eigen::Vector3d kxv = k.cross(p.p);
-    const Eigen::Vector3d at_stamp = p.p + s * kxv + c1 * k.cross(kxv) + a * t;
-    out.push_back(mid ? Eigen::Vector3d(to_mid * at_stamp) : at_stamp);
+  out.resize(in.size());  // within the resident capacity
+  DeskewJob job{
+      .in = in,
+      .out = out.data(),
+      .k = aa.axis(),
+      .t = motion.translation(),
+      .angle = aa.angle(),
+      .inv_period = 1.0 / period_s_,
+      .mid = mid,
+      .to_mid = mid ? scale_motion(motion, 0.5).inverse() : Eigen::Isometry3d::Identity()};
+  if (runner_ != nullptr && in.size() >= ndt::kParallelMinPoints) {
+    runner_->run(ndt::kScoreChunks, &deskew_chunk, &job);
+  } else {
+    for (std::size_t c = 0; c < ndt::kScoreChunks; ++c) deskew_chunk(&job, c);
   }
 }
 
@@ -214,7 +245,7 @@ const ndt::ScanMotion* ConsensusOdometry::scan_motion() const {
 
 double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>& cv) {
   residuals_.reset(grid_.size());
-  ndt::accumulate_residuals(grid_, cv_points_, x, residuals_);
+  residual_accumulator_.run(grid_, cv_points_, x, residuals_, runner_);
   ndt::voxel_consensus_all(residuals_, chi2_, {}, cv);
   return ndt::localization_consensus(grid_, cv, x.head<3>());
 }

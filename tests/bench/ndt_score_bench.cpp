@@ -3,12 +3,15 @@
 // Per call: with and without derivatives, 7 voxels per point and 1, with the lookup cache warm
 // (Newton iterations after the first) and without it (the first scoring of a scan), on one
 // thread and with the chunks shared with a helper thread (runtime::ScoreThreads, as cndtd runs
-// with [runtime] scoring_threads = 2; wall time).
+// with [runtime] scoring_threads = 2; wall time). Then Cv's residual sums over the scan's
+// map_cell points at the same pose: accumulate_residuals against ndt::ResidualAccumulator on one
+// thread and two.
 // Run: build/release/tests/bench/ndt_score_bench
 #include <benchmark/benchmark.h>
 
 #include <vector>
 
+#include "cndt/ndt/consensus.hpp"
 #include "cndt/ndt/ndt_score.hpp"
 #include "cndt/runtime/score_threads.hpp"
 #include "cndt/slam/odometry.hpp"
@@ -82,6 +85,39 @@ BENCHMARK(Score)
     ->Args({1, 7, 0, 2})
     ->Args({1, 1, 1, 1})
     ->Args({1, 1, 1, 2})
+    ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);
+
+// Cv's residual sums (the odometry's Cv at the coarse pose and Cm at the final one) over the
+// scan's map_cell points: threads 0 = accumulate_residuals, else ResidualAccumulator with that
+// many threads.
+void CvResiduals(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const auto threads = static_cast<std::size_t>(state.range(0));
+  const cndt::ndt::VoxelGrid& grid = f.odometry.reference_grid();
+  const std::span<const Eigen::Vector3d> points = f.odometry.scan_points();
+  cndt::runtime::ScoreThreads helpers(threads > 1 ? threads - 1 : 0, {});
+  cndt::ndt::ResidualAccumulator accumulator(points.size());
+  cndt::ndt::VoxelResiduals residuals;
+  residuals.reset(grid.size());
+  for (auto _ : state) {
+    state.PauseTiming();
+    residuals.reset(grid.size());
+    state.ResumeTiming();
+    if (threads == 0) {
+      cndt::ndt::accumulate_residuals(grid, points, f.pose, residuals);
+    } else {
+      accumulator.run(grid, points, f.pose, residuals, &helpers);
+    }
+    benchmark::DoNotOptimize(residuals.rss.data());
+  }
+  state.counters["points"] = static_cast<double>(points.size());
+}
+BENCHMARK(CvResiduals)
+    ->ArgNames({"threads"})
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(2)
     ->UseRealTime()
     ->Unit(benchmark::kMicrosecond);
 

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cndt/core/pose.hpp"
+#include "cndt/ndt/ndt_score.hpp"
 #include "cndt/ndt/voxel_grid.hpp"
 
 namespace cndt::ndt {
@@ -57,6 +58,23 @@ struct VoxelResiduals {
 /// Accumulates each test point's q^T Sigma^-1 q into the voxel it falls in at pose x.
 void accumulate_residuals(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points,
                           const core::Pose6& x, VoxelResiduals& out);
+
+/// accumulate_residuals on several threads: the points' voxels and residuals are found in
+/// kScoreChunks fixed chunks on a TaskRunner, into per-point buffers, and then added to the
+/// voxels in point order on the calling thread, so the sums equal accumulate_residuals' to the
+/// last bit. The buffers hold `capacity` points, allocated once; a larger set of points is
+/// accumulated on the calling thread alone.
+class ResidualAccumulator {
+ public:
+  explicit ResidualAccumulator(std::size_t capacity);
+  /// `runner` null: the chunks run on the calling thread.
+  void run(const VoxelGrid& grid, std::span<const Eigen::Vector3d> points, const core::Pose6& x,
+           VoxelResiduals& out, TaskRunner* runner);
+
+ private:
+  std::vector<std::int32_t> voxel_;  // per point: the Gaussian it falls in, -1 none
+  std::vector<double> residual_;     // per point: q^T Sigma^-1 q there
+};
 
 /// Cv of every reference voxel (NaN where it has no Gaussian or too few test points).
 void voxel_consensus_all(const VoxelResiduals& res, const ChiSquareTable& table,

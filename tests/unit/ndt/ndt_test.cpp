@@ -315,16 +315,24 @@ class ReverseRunner final : public TaskRunner {
   std::size_t tasks = 0;
 };
 
-// The chunks' sums are added in chunk order whoever runs them: a runner changes nothing, to
-// the bit, with and without derivatives, the cache and a scan motion.
-TEST(LookupCache, ScoringsThroughARunnerEqualThoseWithout) {
-  Scene s = random_scene(13);
+// At least three times kParallelMinPoints points: the scene's test points repeated, each copy
+// moved by 5 cm noise.
+std::vector<Eigen::Vector3d> many_points(const Scene& s, std::mt19937& rng) {
   std::vector<Eigen::Vector3d> points;
-  std::mt19937 rng(7);
   std::normal_distribution<double> n(0.0, 0.05);
   while (points.size() < 3 * kParallelMinPoints) {
     for (const auto& p : s.test) points.push_back(p + Eigen::Vector3d(n(rng), n(rng), n(rng)));
   }
+  return points;
+}
+
+// The chunks' sums are added in chunk order whoever runs them: a runner changes nothing, to
+// the bit, with and without derivatives, the cache and a scan motion.
+TEST(LookupCache, ScoringsThroughARunnerEqualThoseWithout) {
+  Scene s = random_scene(13);
+  std::mt19937 rng(7);
+  const std::vector<Eigen::Vector3d> points = many_points(s, rng);
+  std::normal_distribution<double> n(0.0, 0.05);
   std::vector<double> lever(points.size());
   for (std::size_t i = 0; i < lever.size(); ++i) {
     lever[i] = static_cast<double>(i) / static_cast<double>(lever.size());
@@ -358,6 +366,36 @@ TEST(LookupCache, ScoringsThroughARunnerEqualThoseWithout) {
   ndt_score(s.grid, std::span(points).first(kParallelMinPoints - 1), Pose6::Zero(), true, nullptr,
             Neighbours::kSeven, &run_cache);
   EXPECT_EQ(runner.tasks, calls * kScoreChunks);
+}
+
+// Cv's residual sums through ResidualAccumulator equal accumulate_residuals' to the bit, on a
+// runner or not, and a set of points larger than its buffers is still accumulated whole.
+TEST(ResidualAccumulator, SumsEqualTheSerialOnesToTheBit) {
+  Scene s = random_scene(17);
+  std::mt19937 rng(9);
+  const std::vector<Eigen::Vector3d> points = many_points(s, rng);
+  std::normal_distribution<double> n(0.0, 0.05);
+  ReverseRunner runner;
+  ResidualAccumulator accumulator(points.size());
+  ResidualAccumulator small(kParallelMinPoints);
+  for (int round = 0; round < 4; ++round) {
+    Pose6 x;
+    for (int k = 0; k < 6; ++k) x[k] = n(rng) * (k < 3 ? 1.0 : 0.1);
+    VoxelResiduals serial, threaded, alone, overflow;
+    for (VoxelResiduals* r : {&serial, &threaded, &alone, &overflow}) r->reset(s.grid.size());
+    accumulate_residuals(s.grid, points, x, serial);
+    accumulator.run(s.grid, points, x, threaded, &runner);
+    accumulator.run(s.grid, points, x, alone, nullptr);
+    small.run(s.grid, points, x, overflow, &runner);
+    std::uint32_t counted = 0;
+    for (std::uint32_t c : serial.count) counted += c;
+    EXPECT_GT(counted, points.size() / 2);
+    for (const VoxelResiduals* r : {&threaded, &alone, &overflow}) {
+      EXPECT_TRUE(r->count == serial.count);
+      EXPECT_TRUE(r->rss == serial.rss);
+    }
+  }
+  EXPECT_EQ(runner.tasks, 4 * kScoreChunks);  // `small` ran on the calling thread
 }
 
 // Ground, two walls and a box, sampled densely (1 cm noise).
