@@ -75,10 +75,9 @@ struct ResidualJob {
 // TaskRunner's task: chunk `chunk` of the ResidualJob at `context`.
 void residual_chunk(void* context, std::size_t chunk) {
   const ResidualJob& job = *static_cast<ResidualJob*>(context);
-  const std::size_t n = job.points.size();
-  const std::size_t begin = n * chunk / kScoreChunks, end = n * (chunk + 1) / kScoreChunks;
-  std::fill(job.voxel + begin, job.voxel + end, -1);
-  residuals_in(*job.grid, job.points, *job.pd, begin, end,
+  const ChunkRange range = chunk_range(job.points.size(), chunk);
+  std::fill(job.voxel + range.begin, job.voxel + range.end, -1);
+  residuals_in(*job.grid, job.points, *job.pd, range.begin, range.end,
                [&](std::size_t i, std::int32_t idx, double r) {
                  job.voxel[i] = idx;
                  job.residual[i] = r;
@@ -107,11 +106,7 @@ void ResidualAccumulator::run(const VoxelGrid& grid, std::span<const Eigen::Vect
   }
   const PoseDerivatives pd(x);
   ResidualJob job{&grid, points, &pd, voxel_.data(), residual_.data()};
-  if (runner != nullptr && points.size() >= kParallelMinPoints) {
-    runner->run(kScoreChunks, &residual_chunk, &job);
-  } else {
-    for (std::size_t c = 0; c < kScoreChunks; ++c) residual_chunk(&job, c);
-  }
+  run_chunks(runner, points.size(), &residual_chunk, &job);
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (voxel_[i] < 0) continue;
     const auto idx = static_cast<std::size_t>(voxel_[i]);

@@ -284,7 +284,8 @@ void score_chunk(void* context, std::size_t chunk) {
   const ScoreJob& job = *static_cast<ScoreJob*>(context);
   const std::size_t n = job.points.size();
   Partial sums;
-  score_range(job, n * chunk / kScoreChunks, n * (chunk + 1) / kScoreChunks, sums);
+  const ChunkRange r = chunk_range(n, chunk);
+  score_range(job, r.begin, r.end, sums);
   (*job.partials)[chunk] = sums;
 }
 
@@ -331,11 +332,7 @@ ScoreResult ndt_score(const VoxelGrid& grid, std::span<const Eigen::Vector3d> po
                motion,
                &partials};
   TaskRunner* runner = cache != nullptr ? cache->runner_ : nullptr;
-  if (runner != nullptr && points.size() >= kParallelMinPoints) {
-    runner->run(kScoreChunks, &score_chunk, &job);
-  } else {
-    for (std::size_t c = 0; c < kScoreChunks; ++c) score_chunk(&job, c);
-  }
+  run_chunks(runner, points.size(), &score_chunk, &job);
   ScoreResult r;
   Partial sum;
   for (const Partial& p : partials) {

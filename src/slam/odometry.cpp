@@ -176,9 +176,8 @@ struct DeskewJob {
 // TaskRunner's task: chunk `chunk` of the DeskewJob at `context`.
 void deskew_chunk(void* context, std::size_t chunk) {
   const DeskewJob& job = *static_cast<DeskewJob*>(context);
-  const std::size_t n = job.in.size();
-  for (std::size_t i = n * chunk / ndt::kScoreChunks; i < n * (chunk + 1) / ndt::kScoreChunks;
-       ++i) {
+  const ndt::ChunkRange r = ndt::chunk_range(job.in.size(), chunk);
+  for (std::size_t i = r.begin; i < r.end; ++i) {
     const TimedPoint& p = job.in[i];
     const double a = p.t * job.inv_period;
     double s = 0.0, c1 = 0.0;
@@ -213,11 +212,7 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
       .inv_period = 1.0 / period_s_,
       .mid = mid,
       .to_mid = mid ? scale_motion(motion, 0.5).inverse() : Eigen::Isometry3d::Identity()};
-  if (runner_ != nullptr && in.size() >= ndt::kParallelMinPoints) {
-    runner_->run(ndt::kScoreChunks, &deskew_chunk, &job);
-  } else {
-    for (std::size_t c = 0; c < ndt::kScoreChunks; ++c) deskew_chunk(&job, c);
-  }
+  ndt::run_chunks(lookup_cache_.runner(), in.size(), &deskew_chunk, &job);
 }
 
 void ConsensusOdometry::deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base) {
@@ -245,7 +240,7 @@ const ndt::ScanMotion* ConsensusOdometry::scan_motion() const {
 
 double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>& cv) {
   residuals_.reset(grid_.size());
-  residual_accumulator_.run(grid_, cv_points_, x, residuals_, runner_);
+  residual_accumulator_.run(grid_, cv_points_, x, residuals_, lookup_cache_.runner());
   ndt::voxel_consensus_all(residuals_, chi2_, {}, cv);
   return ndt::localization_consensus(grid_, cv, x.head<3>());
 }

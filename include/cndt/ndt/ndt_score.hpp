@@ -61,6 +61,26 @@ inline constexpr std::size_t kScoreChunks = 8;
 /// Smaller scorings run on the calling thread alone (same result).
 inline constexpr std::size_t kParallelMinPoints = 1024;
 
+/// Points [begin, end) of chunk `chunk` of a set of `points` (contiguous, equal up to one).
+struct ChunkRange {
+  std::size_t begin, end;
+};
+inline ChunkRange chunk_range(std::size_t points, std::size_t chunk) {
+  return {points * chunk / kScoreChunks, points * (chunk + 1) / kScoreChunks};
+}
+
+/// Runs task(context, c) for the kScoreChunks chunks of a set of `points`: on `runner` when
+/// there is one and the set has at least kParallelMinPoints, else on the calling thread in
+/// chunk order.
+inline void run_chunks(TaskRunner* runner, std::size_t points,
+                       void (*task)(void* context, std::size_t chunk), void* context) {
+  if (runner != nullptr && points >= kParallelMinPoints) {
+    runner->run(kScoreChunks, task, context);
+  } else {
+    for (std::size_t c = 0; c < kScoreChunks; ++c) task(context, c);
+  }
+}
+
 /// The scan's own motion, solved with its pose. A scan is undistorted (deskewed) with the motion
 /// that the pose `base` implies under constant velocity; at another pose x that motion changes
 /// by the pose's change from `base`, (v, w) = log(X(base)^-1 X(x)) in the sensor frame, and each
@@ -104,6 +124,7 @@ class LookupCache {
   /// Scorings through this cache run their chunks on `runner` (null: on the calling thread).
   /// The results are the same either way.
   void set_runner(TaskRunner* runner) { runner_ = runner; }
+  [[nodiscard]] TaskRunner* runner() const { return runner_; }
 
  private:
   friend ScoreResult ndt_score(const VoxelGrid&, std::span<const Eigen::Vector3d>,

@@ -170,12 +170,9 @@ class ConsensusOdometry {
   /// Adds the last estimated scan to the reference when it is due (nothing if already done).
   void commit();
   [[nodiscard]] const OdometryOptions& options() const { return options_; }
-  /// Runs the scorings' chunks on `runner` (e.g. several threads; null = the calling thread).
-  /// The results do not change (ndt::kScoreChunks).
-  void set_score_runner(ndt::TaskRunner* runner) {
-    lookup_cache_.set_runner(runner);
-    runner_ = runner;
-  }
+  /// Runs the chunks of the scorings, Cv's residuals and the deskews on `runner` (e.g. several
+  /// threads; null = the calling thread). The results do not change (ndt::kScoreChunks).
+  void set_score_runner(ndt::TaskRunner* runner) { lookup_cache_.set_runner(runner); }
   /// The last processed scan's points (downsampled to map_cell, deskewed with the final motion
   /// estimate), in the sensor frame at its stamp: what the mapper takes. Stale after a skipped
   /// scan.
@@ -231,7 +228,6 @@ class ConsensusOdometry {
   bool have_motion_prior_ = false;
   ndt::ChiSquareTable chi2_;
   ndt::LookupCache lookup_cache_;
-  ndt::TaskRunner* runner_ = nullptr;  // Cv's residuals (ndt::ResidualAccumulator)
   ndt::ResidualAccumulator residual_accumulator_;
   Downsampler map_sampler_, scan_sampler_;
   std::vector<TimedPoint> raw_;                // in range, sensor frame
