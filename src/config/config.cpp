@@ -204,7 +204,7 @@ const std::vector<Field>& fields() {
       {"mapper", "keyframe_scans", CNDT_REF(mapper.keyframe_scans),
        "Most scans one keyframe holds.", "scans", 2, 100},
       {"mapper", "capacity_voxels", CNDT_REF(mapper.capacity_voxels),
-       "Map capacity (about 220 bytes each).", "voxels", 1000, 100'000'000},
+       "Map capacity (about 250 bytes each).", "voxels", 1000, 100'000'000},
       {"mapper", "window_m", CNDT_REF(mapper.window_m),
        "Keep only map voxels within this horizontal distance of the vehicle (0 = keep all; "
        "memory then grows with the area driven).",

@@ -136,6 +136,39 @@ double point_terms(const VoxelGrid& grid, const Eigen::Vector3d& q, Neighbours n
 
 namespace {
 
+// A small direct-mapped table of the voxel indices around the keys looked up last: what
+// VoxelGrid::indices_around gave for them, so that a repeated key costs no hash lookups.
+class RecentLookups {
+ public:
+  RecentLookups() {
+    for (Entry& e : entries_) e.key.x = kUnset;
+  }
+  // The indices stored for `key`, or nullptr.
+  [[nodiscard]] const std::int32_t* find(const VoxelKey& key) const {
+    const Entry& e = entries_[slot(key)];
+    return e.key == key ? e.indices.data() : nullptr;
+  }
+  void store(const VoxelKey& key, const std::int32_t* indices, int n) {
+    Entry& e = entries_[slot(key)];
+    e.key = key;
+    std::copy_n(indices, n, e.indices.data());
+  }
+
+ private:
+  static constexpr std::size_t kEntries = 64;
+  struct Entry {
+    VoxelKey key;
+    std::array<std::int32_t, 7> indices;
+  };
+  static std::size_t slot(const VoxelKey& k) {
+    const auto h = static_cast<std::uint32_t>(k.x) * 73856093u ^
+                   static_cast<std::uint32_t>(k.y) * 19349663u ^
+                   static_cast<std::uint32_t>(k.z) * 83492791u;
+    return (h ^ (h >> 13)) & (kEntries - 1);
+  }
+  std::array<Entry, kEntries> entries_;
+};
+
 // One chunk's share of a scoring: ndt_score's sums over the chunk's points. Aligned so that two
 // chunks' results never share a cache line.
 struct alignas(64) Partial {
@@ -198,6 +231,9 @@ void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partia
   std::array<Eigen::Vector3d, kRing> moved;  // with a scan motion: the points it moves
   std::array<VoxelKey, kRing> keys;
   std::array<std::array<std::int32_t, 7>, kRing> local{};
+  // The voxels around recently looked-up keys: a scan's points come sweep by sweep, and the
+  // next sweeps fall in much the same voxels, so most of a scoring's first lookups are repeats.
+  RecentLookups recent;
   auto place = [&](std::size_t j) {
     if (motion != nullptr) {
       moved[j % kRing] = points[j] + motion->lever[j] * (job.mv + job.mw.cross(points[j]));
@@ -206,14 +242,21 @@ void score_range(const ScoreJob& job, std::size_t begin, std::size_t end, Partia
     const VoxelKey key = grid.key_of(v);
     placed[j % kRing] = v;
     keys[j % kRing] = key;
-    if (!cached || !((*cache_keys)[j] == key)) grid.prefetch_around(key, lookups);
+    if ((!cached || !((*cache_keys)[j] == key)) && recent.find(key) == nullptr) {
+      grid.prefetch_around(key, lookups);
+    }
   };
   auto find = [&](std::size_t j) {
     const VoxelKey& key = keys[j % kRing];
     std::int32_t* found = cached ? &(*cache_indices)[j * 7] : local[j % kRing].data();
     if (!cached || !((*cache_keys)[j] == key)) {  // not the voxel this point was in last time
       if (cached) (*cache_keys)[j] = key;
-      grid.indices_around(key, lookups, found);
+      if (const std::int32_t* known = recent.find(key)) {
+        std::copy_n(known, lookups, found);
+      } else {
+        grid.indices_around(key, lookups, found);
+        recent.store(key, found, lookups);
+      }
     }
     for (int n = 0; n < lookups; ++n) {
       if (found[n] >= 0) grid.prefetch_gaussian(found[n]);

@@ -50,12 +50,10 @@ Eigen::Vector3d VoxelGrid::corner(const VoxelKey& k) const noexcept {
 }
 
 std::size_t VoxelGrid::slot_of(const VoxelKey& k, std::uint64_t h) const noexcept {
-  const auto tag = static_cast<std::uint32_t>(h >> 32);
   std::size_t s = h & mask_;
   for (;;) {
     const Slot& slot = table_[s];
-    if (slot.index < 0) return s;
-    if (slot.tag == tag && voxels_[static_cast<std::size_t>(slot.index)].key == k) return s;
+    if (slot.index < 0 || slot.key == k) return s;
     s = (s + 1) & mask_;
   }
 }
@@ -103,7 +101,7 @@ void VoxelGrid::insert_slot(const VoxelKey& k, std::int32_t index) noexcept {
   const std::uint64_t h = hash(k);
   std::size_t s = h & mask_;
   while (table_[s].index >= 0) s = (s + 1) & mask_;
-  table_[s] = {static_cast<std::uint32_t>(h >> 32), index};
+  table_[s] = {k, index};
 }
 
 void VoxelGrid::grow_table_for(std::size_t voxels) noexcept {

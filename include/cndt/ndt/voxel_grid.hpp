@@ -153,12 +153,13 @@ class VoxelGrid {
   [[nodiscard]] std::uint64_t version() const noexcept { return version_; }
 
  private:
-  // One hash table slot: the voxel's index (-1: empty) and the high half of its key's hash,
-  // so that a probe passing other keys' slots reads no voxel.
+  // One hash table slot: the voxel's key and index (-1: empty). With the key in the slot a
+  // lookup reads no voxel: one cache line per key, however many keys it passes.
   struct Slot {
-    std::uint32_t tag = 0;
+    VoxelKey key;
     std::int32_t index = -1;
   };
+  static_assert(sizeof(Slot) == 16);
   [[nodiscard]] std::size_t slot_of(const VoxelKey& k) const noexcept;
   [[nodiscard]] std::size_t slot_of(const VoxelKey& k, std::uint64_t h) const noexcept;
   void insert_slot(const VoxelKey& k, std::int32_t index) noexcept;  // k not in the table

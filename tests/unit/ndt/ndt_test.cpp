@@ -305,6 +305,55 @@ TEST(LookupCache, GivesTheSameScoresAsFreshLookups) {
   }
 }
 
+// A scoring finds each point's voxels once per key and reuses them for the points after it in
+// the same voxel: its score and translation gradient are still the sums of point_terms (which
+// looks every point up afresh) over its points. Thousands of voxels (far more keys than a
+// scoring keeps), points in runs within one voxel broken by points elsewhere, with and without
+// the lookup cache, before and after the grid grows.
+TEST(NdtScore, EqualsPointTermsSummedOverItsPoints) {
+  VoxelGrid grid({0.5, 20000, 5, 0.001});
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> n(0.0, 0.1);
+  auto fill = [&](double x0, double x1) {
+    for (int i = 0; i < 60000; ++i) {  // a rough slab: about 12 points per voxel
+      const double x = x0 + (x1 - x0) * u(rng), y = 10.0 * u(rng);
+      grid.add(Eigen::Vector3d(x, y, 0.5 * std::sin(x) * std::cos(y) + 0.3 * u(rng)));
+    }
+    grid.finalize();
+  };
+  fill(0.0, 10.0);
+  std::vector<Eigen::Vector3d> points;
+  for (int run = 0; run < 1500; ++run) {
+    const Eigen::Vector3d centre(12.0 * u(rng) - 1.0, 10.0 * u(rng), 0.5 * u(rng));
+    for (int i = 0; i < 1 + run % 4; ++i) {
+      points.push_back(centre + Eigen::Vector3d(n(rng), n(rng), n(rng)));
+    }
+  }
+  LookupCache cache(points.size());
+  for (int round = 0; round < 4; ++round) {
+    Pose6 x;
+    for (int k = 0; k < 6; ++k) x[k] = n(rng) * (k < 3 ? 1.0 : 0.1);
+    const Eigen::Isometry3d T = core::to_isometry(x);
+    for (Neighbours nb : {Neighbours::kOne, Neighbours::kSeven}) {
+      double score = 0.0;
+      Eigen::Vector3d g_t = Eigen::Vector3d::Zero();
+      for (const auto& p : points) {
+        Eigen::Vector3d b;
+        score += point_terms(grid, T * p, nb, nullptr, &b);
+        g_t += b;
+      }
+      ASSERT_LT(score, -100.0);
+      for (LookupCache* c : {static_cast<LookupCache*>(nullptr), &cache}) {
+        const ScoreResult r = ndt_score(grid, points, x, true, nullptr, nb, c);
+        EXPECT_NEAR(r.score, score, 1e-9 * std::abs(score));
+        EXPECT_LT((r.gradient.head<3>() - g_t).norm(), 1e-9 * (1.0 + g_t.norm()));
+      }
+    }
+    if (round == 1) fill(10.0, 12.0);  // new voxels: lookups that found nothing now find them
+  }
+}
+
 // Runs a scoring's chunks last to first, as another thread might finish them, and counts them.
 class ReverseRunner final : public TaskRunner {
  public:
