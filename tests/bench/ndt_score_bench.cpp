@@ -1,8 +1,8 @@
-// The NDT scoring kernel alone: one ndt_score call on a street scan's matched points (0.5 m
-// cells) against the odometry's local map after 40 scans, at the odometry's own pose for it.
-// Per call: with and without derivatives, 7 voxels per point and 1, with the lookup cache warm
-// (Newton iterations after the first) and without it (the first scoring of a scan), on one
-// thread and with the chunks shared with a helper thread (runtime::ScoreThreads, as cndtd runs
+// The NDT scoring kernel alone: one ndt_score call on a street scan's matched points (the
+// odometry's scan cells) against the odometry's local map after 40 scans, at the odometry's own
+// pose for it. Per call: with and without derivatives, 7 voxels per point and 1, with the lookup
+// cache warm (Newton iterations after the first) and without it (the first scoring of a scan), on
+// one thread and with the chunks shared with a helper thread (runtime::ScoreThreads, as cndtd runs
 // with [runtime] scoring_threads = 2; wall time). Then Cv's residual sums over the scan's
 // map_cell points at the same pose: accumulate_residuals against ndt::ResidualAccumulator on one
 // thread and two.
@@ -21,7 +21,7 @@ namespace {
 
 struct Fixture {
   cndt::slam::ConsensusOdometry odometry{cndt::slam::OdometryOptions{}};
-  std::vector<Eigen::Vector3d> points;  // sensor frame, 0.5 m cells
+  std::vector<Eigen::Vector3d> points;  // sensor frame, the odometry's scan cells
   cndt::core::Pose6 pose;
 
   Fixture() {
@@ -32,7 +32,7 @@ struct Fixture {
     for (std::size_t i = 0; i + 2 < scans.size(); ++i) odometry.process(scans[i]);
     const cndt::slam::OdometryResult last = odometry.process(scans[scans.size() - 2]);
     pose = cndt::core::to_pose6(last.pose);
-    cndt::slam::Downsampler cells(0.5, odometry.options().max_scan_points);
+    cndt::slam::Downsampler cells(odometry.options().scan_cell, odometry.options().max_scan_points);
     cells.run(odometry.scan_points(), points);
   }
 };

@@ -5,12 +5,14 @@
 #include <atomic>
 #include <cstdlib>
 #include <functional>
+#include <random>
 #include <thread>
 
 #include "cndt/can/can_bus.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
 #include "cndt/runtime/pipeline.hpp"
 #include "cndt/runtime/publisher.hpp"
+#include "cndt/runtime/score_threads.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/correction_blend.hpp"
 #include "cndt/vlp16/driver.hpp"
@@ -18,6 +20,38 @@
 
 namespace cndt::runtime {
 namespace {
+
+// Each run's tasks run once each, on the caller or a helper, and are done (their writes seen)
+// when run() returns; helpers that wake late, after the caller took every task itself, neither
+// hold the caller up nor take a task of a later run. The pauses between runs put the helpers
+// to sleep (longer than their spin) or catch them just as they fall asleep.
+TEST(ScoreThreads, EveryTaskRunsOnceAndIsDoneWhenRunReturns) {
+  struct Tally {
+    std::array<int, 16> ran{};  // plain ints: each written by the one thread that took it
+  };
+  for (const std::size_t helpers : {std::size_t{1}, std::size_t{2}}) {
+    ScoreThreads threads(helpers, {});
+    std::mt19937 rng(static_cast<std::uint32_t>(helpers));
+    std::uniform_int_distribution<std::size_t> count(0, 16);
+    std::uniform_int_distribution<int> pause_us(0, 400);
+    Tally tally;
+    for (int run = 0; run < 2000; ++run) {
+      const std::size_t n = count(rng);
+      threads.run(
+          n,
+          [](void* context, std::size_t i) {
+            auto& t = *static_cast<Tally*>(context);
+            ++t.ran[i];
+          },
+          &tally);
+      for (std::size_t i = 0; i < tally.ran.size(); ++i) {
+        ASSERT_EQ(tally.ran[i], i < n ? 1 : 0) << "run " << run << ", task " << i;
+        tally.ran[i] = 0;
+      }
+      if (run % 8 == 0) std::this_thread::sleep_for(std::chrono::microseconds(pause_us(rng)));
+    }
+  }
+}
 
 // The scans of a simulated drive, as the driver assembles them.
 std::vector<core::Scan> simulated_scans(sim::SceneKind kind, double seconds) {

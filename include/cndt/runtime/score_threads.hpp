@@ -31,17 +31,21 @@ class ScoreThreads final : public ndt::TaskRunner {
 
  private:
   void helper_loop();
-  void work();
+  // Claims and runs tasks of run `generation` until it has none left or another run began.
+  void work(std::uint32_t generation);
 
   std::vector<std::thread> threads_;
-  // Published with generation_ (release) and read by the helpers after they see it (acquire);
-  // written again only after every helper has reported the run finished.
-  std::size_t count_ = 0;
+  // Published with claim_ (release) and read by whoever claims a task of the run (acquire);
+  // written again only when every claimed task of the run is done.
   void (*task_)(void*, std::size_t) = nullptr;
   void* context_ = nullptr;
+  // The run's generation (high 32 bits), task count (next 16) and next unclaimed task (low 16):
+  // a task is claimed by a compare-and-swap on the whole word, so a helper that wakes late
+  // cannot take a task of a run other than the one it saw, and the caller never waits for a
+  // helper that took none.
+  alignas(64) std::atomic<std::uint64_t> claim_{0};
+  alignas(64) std::atomic<std::size_t> done_{0};  // tasks of the current run finished
   alignas(64) std::atomic<std::uint32_t> generation_{0};
-  alignas(64) std::atomic<std::size_t> next_{0};
-  alignas(64) std::atomic<std::size_t> finished_{0};  // helpers done with the current run
   std::atomic<bool> stop_{false};
   // Helpers asleep in wake_ (run() notifies only when there are some).
   std::atomic<std::size_t> sleeping_{0};
