@@ -2,8 +2,13 @@
 
 #include <fmt/format.h>
 #include <poll.h>
+#include <sys/socket.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 
 #include "asio.hpp"
 
@@ -96,6 +101,12 @@ core::Result<std::unique_ptr<UdpReceiver>> UdpReceiver::open(const std::string& 
   if (!ec) impl->socket.set_option(boost::asio::socket_base::reuse_address(true), ec);
   if (!ec) impl->socket.bind(ep, ec);
   if (!ec) impl->socket.non_blocking(true, ec);
+  // Each datagram comes with the time the kernel received it (see receive()).
+  const int on = 1;
+  if (!ec &&
+      ::setsockopt(impl->socket.native_handle(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) != 0) {
+    ec = boost::system::error_code(errno, boost::system::system_category());
+  }
   if (ec) {
     return core::Error{core::kExitIoError,
                        fmt::format("cannot listen on UDP {}:{}: {}", address, port, ec.message())};
@@ -107,23 +118,40 @@ UdpReceiver::UdpReceiver(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 UdpReceiver::~UdpReceiver() = default;
 
 std::optional<std::size_t> UdpReceiver::receive(std::span<std::uint8_t> buffer,
-                                                std::chrono::milliseconds timeout) {
+                                                std::chrono::milliseconds timeout,
+                                                std::chrono::system_clock::time_point* arrival) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const int fd = impl_->socket.native_handle();
   for (;;) {
-    boost::system::error_code ec;
-    udp::endpoint from;
-    const std::size_t n =
-        impl_->socket.receive_from(boost::asio::buffer(buffer.data(), buffer.size()), from, 0, ec);
-    if (!ec) return n;
-    if (ec != boost::asio::error::would_block && ec != boost::asio::error::interrupted &&
-        ec != boost::asio::error::message_size) {
-      return std::nullopt;
+    iovec iov{buffer.data(), buffer.size()};
+    alignas(cmsghdr) std::array<char, CMSG_SPACE(sizeof(timespec))> control{};
+    msghdr msg{};
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control.data();
+    msg.msg_controllen = control.size();
+    const ssize_t n = ::recvmsg(fd, &msg, 0);
+    if (n >= 0) {
+      if (arrival != nullptr) {
+        *arrival = std::chrono::system_clock::now();
+        for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+          if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS) {
+            timespec ts{};
+            std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+            *arrival = std::chrono::system_clock::time_point(
+                std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                    std::chrono::seconds(ts.tv_sec) + std::chrono::nanoseconds(ts.tv_nsec)));
+          }
+        }
+      }
+      // A datagram longer than the buffer arrives truncated to it.
+      return (msg.msg_flags & MSG_TRUNC) != 0 ? buffer.size() : static_cast<std::size_t>(n);
     }
-    if (ec == boost::asio::error::message_size) return buffer.size();
+    if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) return std::nullopt;
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
         deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) return std::nullopt;
-    pollfd p{impl_->socket.native_handle(), POLLIN, 0};
+    pollfd p{fd, POLLIN, 0};
     ::poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 1000)));
   }
 }

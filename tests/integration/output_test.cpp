@@ -1,8 +1,12 @@
 // What cndt publishes, end to end: the candump log of a replay decodes with config/cndt.dbc alone
 // to the poses of trajectory.tum, CRCs and counters verify, corrupted frames and datagrams are
-// rejected by `cndt listen`, and every pose arrives as a UDP datagram.
+// rejected by `cndt listen`, and every pose arrives as a UDP datagram (with the time the kernel
+// took it in).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -172,6 +176,38 @@ TEST_F(PoseOutput, EveryPoseArrivesAsAUdpDatagram) {
     ++i;
   }
   EXPECT_EQ(i, traj.size());
+}
+
+// The arrival time is the kernel's, taken when the datagram came in, not when the receiving
+// thread got to it: a datagram read 200 ms after it was sent still carries its sending time.
+// A datagram longer than the buffer comes truncated to it.
+TEST(UdpReceiver, GivesTheTimeTheKernelTookTheDatagramIn) {
+  auto rx = cndt::net::UdpReceiver::open("127.0.0.1", 0);
+  ASSERT_TRUE(rx) << rx.error().message;
+  auto tx = cndt::net::UdpSender::open("127.0.0.1", rx.value()->port());
+  ASSERT_TRUE(tx) << tx.error().message;
+  const std::array<std::uint8_t, 5> payload{1, 2, 3, 4, 5};
+  const auto before = std::chrono::system_clock::now();
+  ASSERT_TRUE(tx.value()->send(cndt::core::ByteSpan(payload)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  std::array<std::uint8_t, 16> buf{};
+  std::chrono::system_clock::time_point arrival{};
+  const auto n = rx.value()->receive(buf, std::chrono::milliseconds(1000), &arrival);
+  const auto after = std::chrono::system_clock::now();
+  ASSERT_TRUE(n);
+  EXPECT_EQ(*n, payload.size());
+  EXPECT_TRUE(std::equal(payload.begin(), payload.end(), buf.begin()));
+  EXPECT_GE(arrival, before - std::chrono::milliseconds(5));  // the clock's own resolution
+  EXPECT_LT(arrival, before + std::chrono::milliseconds(100));
+  EXPECT_GE(after - arrival, std::chrono::milliseconds(150));
+
+  ASSERT_TRUE(tx.value()->send(cndt::core::ByteSpan(payload)));
+  std::array<std::uint8_t, 3> small{};
+  const auto m = rx.value()->receive(small, std::chrono::milliseconds(1000));
+  ASSERT_TRUE(m);
+  EXPECT_EQ(*m, small.size());
+  EXPECT_EQ(small[2], 3);
+  EXPECT_FALSE(rx.value()->receive(small, std::chrono::milliseconds(20)));  // nothing left
 }
 
 TEST_F(PoseOutput, ListenRejectsCorruptDatagramsAndCountsGaps) {

@@ -49,9 +49,13 @@ class UdpReceiver {
   ~UdpReceiver();
   UdpReceiver(const UdpReceiver&) = delete;
   UdpReceiver& operator=(const UdpReceiver&) = delete;
-  /// Waits up to `timeout` for a datagram; its size (truncated to the buffer), or nothing.
+  /// Waits up to `timeout` for a datagram; its size (truncated to the buffer), or nothing. With
+  /// `arrival`, also the time the kernel took the datagram in (wall clock, SO_TIMESTAMPNS; the
+  /// time of this call's return where the kernel gives none): unlike the return of this call, it
+  /// does not wait for the receiving thread to be scheduled.
   std::optional<std::size_t> receive(std::span<std::uint8_t> buffer,
-                                     std::chrono::milliseconds timeout);
+                                     std::chrono::milliseconds timeout,
+                                     std::chrono::system_clock::time_point* arrival = nullptr);
   [[nodiscard]] std::uint16_t port() const;
 
   struct Impl;
