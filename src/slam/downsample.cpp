@@ -41,22 +41,34 @@ void Downsampler::prefetch(const Eigen::Vector3d& p) const {
   __builtin_prefetch(&table_[home_slot(key_of(p))]);
 }
 
-void Downsampler::bin(const Eigen::Vector3d& p, double t) {
-  const std::int64_t key = key_of(p);
+std::int32_t Downsampler::find_or_add(std::int64_t key) {
   std::size_t s = home_slot(key);
   while (table_[s] >= 0 && cells_[static_cast<std::size_t>(table_[s])].key != key) {
     s = (s + 1) & mask_;
   }
   if (table_[s] < 0) {
-    if (cells_.size() == capacity_) {  // not cells_.capacity(): a copy reserves only its size
-      ++dropped_;
-      return;
-    }
+    if (cells_.size() == capacity_) return -1;  // not cells_.capacity(): a copy reserves its size
     table_[s] = static_cast<std::int32_t>(cells_.size());
     used_slots_.push_back(s);
     cells_.push_back(Cell{key, Eigen::Vector3d::Zero(), 0.0, 0});
   }
-  Cell& c = cells_[static_cast<std::size_t>(table_[s])];
+  return table_[s];
+}
+
+void Downsampler::bin(const Eigen::Vector3d& p, double t) {
+  const std::int64_t key = key_of(p);
+  Recent& recent = recent_[static_cast<std::size_t>(
+      (static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> (64 - kRecentBits))];
+  std::int32_t index = recent.index;
+  if (recent.key != key) {
+    index = find_or_add(key);
+    if (index < 0) {
+      ++dropped_;
+      return;
+    }
+    recent = {key, index};
+  }
+  Cell& c = cells_[static_cast<std::size_t>(index)];
   c.sum += p;
   c.time_sum += t;
   ++c.count;
@@ -69,6 +81,7 @@ void Downsampler::size_table(std::size_t points) {
 }
 
 void Downsampler::reset() {
+  recent_.fill(Recent{});
   for (std::size_t s : used_slots_) table_[s] = -1;
   used_slots_.clear();
   cells_.clear();

@@ -5,7 +5,7 @@
 // one thread and with the chunks shared with a helper thread (runtime::ScoreThreads, as cndtd runs
 // with [runtime] scoring_threads = 2; wall time). Then Cv's residual sums over the scan's
 // map_cell points at the same pose: accumulate_residuals against ndt::ResidualAccumulator on one
-// thread and two.
+// thread and two. Last, the odometry's two downsamplings of the scan's returns.
 // Run: build/release/tests/bench/ndt_score_bench
 #include <benchmark/benchmark.h>
 
@@ -21,7 +21,8 @@ namespace {
 
 struct Fixture {
   cndt::slam::ConsensusOdometry odometry{cndt::slam::OdometryOptions{}};
-  std::vector<Eigen::Vector3d> points;  // sensor frame, the odometry's scan cells
+  std::vector<Eigen::Vector3d> points;      // sensor frame, the odometry's scan cells
+  std::vector<cndt::slam::TimedPoint> raw;  // the last scan's returns in range
   cndt::core::Pose6 pose;
 
   Fixture() {
@@ -32,6 +33,12 @@ struct Fixture {
     for (std::size_t i = 0; i + 2 < scans.size(); ++i) odometry.process(scans[i]);
     const cndt::slam::OdometryResult last = odometry.process(scans[scans.size() - 2]);
     pose = cndt::core::to_pose6(last.pose);
+    const cndt::slam::OdometryOptions& o = odometry.options();
+    for (const cndt::core::Point& q : scans[scans.size() - 2].points) {
+      const Eigen::Vector3d v(q.x, q.y, q.z);
+      const double r = v.norm();
+      if (r >= o.min_range && r <= o.max_range) raw.push_back({v, q.time_ns * 1e-9});
+    }
     cndt::slam::Downsampler cells(odometry.options().scan_cell, odometry.options().max_scan_points);
     cells.run(odometry.scan_points(), points);
   }
@@ -120,5 +127,26 @@ BENCHMARK(CvResiduals)
     ->Arg(2)
     ->UseRealTime()
     ->Unit(benchmark::kMicrosecond);
+
+// The odometry's two downsamplings of a scan: its returns in range into map_cell centroids (with
+// their mean firing times), then those into scan_cell centroids.
+void Downsample(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const cndt::slam::OdometryOptions& o = f.odometry.options();
+  cndt::slam::Downsampler map_cells(o.map_cell, o.max_scan_points);
+  cndt::slam::Downsampler scan_cells(o.scan_cell, o.max_scan_points);
+  std::vector<cndt::slam::TimedPoint> map_points, scan_points;
+  map_points.reserve(o.max_scan_points);
+  scan_points.reserve(o.max_scan_points);
+  for (auto _ : state) {
+    map_cells.run(f.raw, map_points);
+    scan_cells.run(map_points, scan_points);
+    benchmark::DoNotOptimize(scan_points.data());
+  }
+  state.counters["raw_points"] = static_cast<double>(f.raw.size());
+  state.counters["map_cells"] = static_cast<double>(map_points.size());
+  state.counters["scan_cells"] = static_cast<double>(scan_points.size());
+}
+BENCHMARK(Downsample)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 }  // namespace

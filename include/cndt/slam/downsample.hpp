@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -38,9 +39,19 @@ class Downsampler {
   };
   // Points are binned in order; the table slot of the point kAhead later is fetched meanwhile.
   static constexpr std::size_t kAhead = 16;
+  // The cells of the keys seen last, direct-mapped by key: a scan's next point on a ring comes
+  // one firing sequence (16 points) after the one before it, often in the same cell, and is then
+  // found here without a probe of the table. Cells stay where they are until reset().
+  struct Recent {
+    std::int64_t key = -1;  // keys are never negative
+    std::int32_t index = -1;
+  };
+  static constexpr int kRecentBits = 8;
   [[nodiscard]] std::int64_t key_of(const Eigen::Vector3d& p) const;
   [[nodiscard]] std::size_t home_slot(std::int64_t key) const;
   void prefetch(const Eigen::Vector3d& p) const;
+  // The cell of `key`, a new one when there is room; -1 when the cells are full.
+  std::int32_t find_or_add(std::int64_t key);
   void bin(const Eigen::Vector3d& p, double t);
   void size_table(std::size_t points);
   void reset();
@@ -49,6 +60,7 @@ class Downsampler {
   std::vector<Cell> cells_;
   std::vector<std::int32_t> table_;  // slots for the capacity; the first mask_ + 1 in use
   std::vector<std::size_t> used_slots_;
+  std::array<Recent, std::size_t{1} << kRecentBits> recent_{};
   std::size_t mask_;
   std::size_t dropped_ = 0;
 };

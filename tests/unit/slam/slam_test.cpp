@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -60,6 +61,72 @@ TEST(Downsampler, OneCentroidPerCellAndABoundedOutput) {
   small.run(in, out);
   EXPECT_EQ(out.size(), 2u);
   EXPECT_EQ(small.dropped(), 1u);
+}
+
+// Rings interleaved as a scan delivers them (many points in a row falling in cells seen a few
+// points before, hundreds of cells in all), binned twice by one downsampler: each time the same
+// centroids, in first-seen order and to the bit, as a plain reference that sums every cell's
+// points in input order. With room for fewer cells than occur, the cells seen first are kept and
+// every point of the others is counted as dropped.
+TEST(Downsampler, EqualsAPlainReferenceToTheBitOnInterleavedRings) {
+  std::vector<TimedPoint> in;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> noise(-0.004, 0.004);
+  for (int step = 0; step < 600; ++step) {
+    for (int ring = 0; ring < 16; ++ring) {
+      const double azimuth = 0.004 * step, range = 2.0 + 0.7 * ring;
+      in.push_back({Eigen::Vector3d(range * std::cos(azimuth) + noise(rng),
+                                    range * std::sin(azimuth) + noise(rng), 0.1 * ring - 0.8),
+                    1e-5 * (16 * step + ring)});
+    }
+  }
+  const double cell = 0.1;
+  const auto reference = [&](std::size_t room, std::size_t& dropped) {
+    std::vector<std::array<std::int64_t, 3>> keys;
+    std::vector<TimedPoint> sums;
+    std::vector<int> counts;
+    dropped = 0;
+    for (const TimedPoint& q : in) {
+      const Eigen::Vector3d c = q.p * (1.0 / cell);  // as the downsampler scales
+      const std::array<std::int64_t, 3> k{static_cast<std::int64_t>(std::floor(c.x())),
+                                          static_cast<std::int64_t>(std::floor(c.y())),
+                                          static_cast<std::int64_t>(std::floor(c.z()))};
+      const auto it = std::find(keys.begin(), keys.end(), k);
+      std::size_t i = static_cast<std::size_t>(it - keys.begin());
+      if (it == keys.end()) {
+        if (keys.size() == room) {
+          ++dropped;
+          continue;
+        }
+        keys.push_back(k);
+        sums.push_back({Eigen::Vector3d::Zero(), 0.0});
+        counts.push_back(0);
+      }
+      sums[i].p += q.p;
+      sums[i].t += q.t;
+      ++counts[i];
+    }
+    for (std::size_t i = 0; i < sums.size(); ++i) {
+      sums[i] = {sums[i].p / counts[i], sums[i].t / counts[i]};
+    }
+    return sums;
+  };
+  for (const std::size_t room : {in.size(), std::size_t{300}}) {
+    std::size_t ref_dropped = 0;
+    const std::vector<TimedPoint> expected = reference(room, ref_dropped);
+    ASSERT_GT(expected.size(), 250u);
+    Downsampler d(cell, room);
+    std::vector<TimedPoint> out;
+    for (int pass = 0; pass < 2; ++pass) {
+      d.run(in, out);
+      ASSERT_EQ(out.size(), expected.size()) << room;
+      EXPECT_EQ(d.dropped(), ref_dropped) << room;
+      for (std::size_t i = 0; i < out.size(); ++i) {
+        ASSERT_EQ(out[i].p, expected[i].p) << room << " cell " << i;
+        ASSERT_EQ(out[i].t, expected[i].t) << room << " cell " << i;
+      }
+    }
+  }
 }
 
 TEST(Downsampler, NoVoxelHoldsMoreCentroidsThanTheConsensusTableCovers) {
