@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # The threads under ThreadSanitizer: the scoring threads' hand-offs, the live pipeline
-# overloaded (drops on both sides of the rings), a replay whose odometry runs ahead of a busy
-# mapper, then cndtd on a short simulated capture with the mapper, CAN and UDP outputs and health
+# overloaded (drops on both sides of the rings) and idle (its threads asleep until a scan comes),
+# a replay whose odometry runs ahead of a busy mapper, the UDP receiver and its sleeping
+# consumer, then cndtd on a short simulated capture with the mapper, CAN and UDP outputs and health
 # lines every half second. Any report fails the stage (TSan exits non-zero).
 # Usage: scripts/tsan.sh BUILD_DIR
 set -euo pipefail
 build=$1
 export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1"
 "$build/tests/runtime_tests" --gtest_filter='Runtime.Live*:Runtime.ReplayOdometryRunsAhead*:AllocCounter.*:ScoreThreads.*'
+"$build/tests/udp_live_tests"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 "$build/src/apps/cndt" sim --scene street --duration 3 --out "$tmp/sim"

@@ -4,6 +4,8 @@
 #include <spdlog/spdlog.h>
 
 #include <boost/lockfree/spsc_queue.hpp>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 #include "asio.hpp"
@@ -54,12 +56,22 @@ struct UdpSource::Impl {
   boost::lockfree::spsc_queue<Slot> queue;
   std::thread thread;
   std::atomic<bool> stopped{false};
+  // The consumer sleeps on `arrived` while the queue is empty; the receive thread takes `mutex`
+  // after each push (and stop() after setting `stopped`) before it notifies, so a wake-up cannot
+  // fall between the consumer's check and its wait.
+  std::mutex mutex;
+  std::condition_variable arrived;
   Slot current{};
   std::atomic<std::uint64_t> received{0}, accepted{0}, wrong_source{0}, oversize{0}, queue_full{0},
       errors{0};
   int granted_buffer = 0;
 
   explicit Impl(const UdpOptions& o) : options(o), queue(o.queue_capacity) {}
+
+  void wake() {
+    { const std::lock_guard<std::mutex> lock(mutex); }
+    arrived.notify_one();
+  }
 
   void arm(Listener& l) {
     l.socket.async_receive_from(boost::asio::buffer(l.buffer), l.sender,
@@ -96,6 +108,7 @@ struct UdpSource::Impl {
     s.dest_port = l.port;
     if (queue.push(s)) {
       ++accepted;
+      wake();
     } else {
       ++queue_full;
     }
@@ -152,6 +165,7 @@ UdpSource::~UdpSource() { stop(); }
 
 void UdpSource::stop() {
   if (impl_->stopped.exchange(true)) return;
+  impl_->wake();
   impl_->io.stop();
   if (impl_->thread.joinable()) impl_->thread.join();
 }
@@ -160,8 +174,11 @@ io::NextResult UdpSource::next(io::SourcePacket& packet, std::chrono::millisecon
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (!impl_->queue.pop(impl_->current)) {
     if (impl_->stopped.load()) return io::NextResult::kEnd;
-    if (std::chrono::steady_clock::now() >= deadline) return io::NextResult::kTimeout;
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
+    std::unique_lock<std::mutex> lock(impl_->mutex);
+    const bool ready = impl_->arrived.wait_until(lock, deadline, [this] {
+      return impl_->queue.read_available() > 0 || impl_->stopped.load();
+    });
+    if (!ready) return io::NextResult::kTimeout;
   }
   const Slot& s = impl_->current;
   packet.kind = s.kind;

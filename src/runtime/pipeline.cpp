@@ -94,6 +94,14 @@ struct Pipeline::Impl {
   std::atomic<std::uint64_t> scans_in{0}, scans_dropped{0}, scans_done{0}, mapper_dropped{0},
       results_dropped{0}, keyframes{0}, allocations{0}, page_faults{0};
   std::atomic<bool> counting{false};
+  // Bumped (and the waiting thread woken) whenever there may be something new for the odometry
+  // thread (a scan in the ring, the input closed, a stop) and for the mapper thread (a scan in
+  // the key ring, the odometry done, a stop): they sleep on these instead of polling.
+  std::atomic<std::uint32_t> odometry_wake{0}, mapper_wake{0};
+  static void wake(std::atomic<std::uint32_t>& w) noexcept {
+    w.fetch_add(1, std::memory_order_release);
+    w.notify_one();
+  }
   // Live input: scans the full ring could not take yet (a FIFO on the input thread), and how
   // many of the oldest ring scans the odometry is asked to drop to make room for them.
   std::vector<std::uint32_t> pending;
@@ -172,10 +180,11 @@ struct Pipeline::Impl {
     std::uint64_t processed = 0, base = 0, faults_base = 0;
     for (;;) {
       std::uint32_t idx = 0;
+      const std::uint32_t seen = odometry_wake.load(std::memory_order_acquire);
       if (!full.pop(idx)) {
         if (stopping.load()) break;
         if (input_closed.load() && full.read_available() == 0) break;
-        std::this_thread::sleep_for(kPoll);
+        odometry_wake.wait(seen, std::memory_order_acquire);  // until a scan or a stop comes
         continue;
       }
       // Live: the input found the ring full; the oldest scans (this one first) give way.
@@ -249,6 +258,7 @@ struct Pipeline::Impl {
     alloc_counting(false);
     publisher.flush();
     odometry_done.store(true);
+    wake(mapper_wake);
   }
 
   // Adds the scan just estimated to the odometry's reference (after its pose went out, live),
@@ -370,6 +380,7 @@ struct Pipeline::Impl {
     key_regions[keys_handed % key_regions.size()] = region;
     ++keys_handed;
     key_full.push(k);
+    wake(mapper_wake);
     return true;
   }
 
@@ -377,10 +388,11 @@ struct Pipeline::Impl {
     log_setup_problems("mapper", options.mapper_thread);
     for (;;) {
       std::uint32_t k = 0;
+      const std::uint32_t seen = mapper_wake.load(std::memory_order_acquire);
       if (!key_full.pop(k)) {
         const bool odometry_finished = odometry_done.load();
         if (stopping.load() || (odometry_finished && key_full.read_available() == 0)) break;
-        std::this_thread::sleep_for(kPoll);
+        mapper_wake.wait(seen, std::memory_order_acquire);  // until a scan or the end comes
         continue;
       }
       KeyScan& key = keys[k];
@@ -477,7 +489,10 @@ bool Pipeline::push(const core::Scan& scan, std::chrono::steady_clock::time_poin
   slot.completed = completed;
   m.scans_in.fetch_add(1, std::memory_order_relaxed);
   if (m.options.live) {
-    if (m.pending_size == 0 && m.full.push(idx)) return true;
+    if (m.pending_size == 0 && m.full.push(idx)) {
+      Impl::wake(m.odometry_wake);
+      return true;
+    }
     // The ring is full: the scan waits on this side, and the odometry drops the oldest ring
     // scan for it at its next step. The input never waits for the odometry.
     m.pending[(m.pending_head + m.pending_size) % m.pending.size()] = idx;
@@ -486,15 +501,20 @@ bool Pipeline::push(const core::Scan& scan, std::chrono::steady_clock::time_poin
     return true;
   }
   // Stopped while waiting: the slot stays out of the pool, which is going away.
-  return m.wait_for([&] { return m.full.push(idx); });
+  if (!m.wait_for([&] { return m.full.push(idx); })) return false;
+  Impl::wake(m.odometry_wake);
+  return true;
 }
 
 void Pipeline::service_input() {
   Impl& m = *impl_;
+  bool pushed = false;
   while (m.pending_size > 0 && m.full.push(m.pending[m.pending_head])) {
     m.pending_head = (m.pending_head + 1) % m.pending.size();
     --m.pending_size;
+    pushed = true;
   }
+  if (pushed) Impl::wake(m.odometry_wake);
 }
 
 void Pipeline::close_input(bool drain) {
@@ -507,9 +527,14 @@ void Pipeline::close_input(bool drain) {
   }
   impl_->drain.store(drain);
   impl_->input_closed.store(true);
+  Impl::wake(impl_->odometry_wake);
 }
 
-void Pipeline::stop() { impl_->stopping.store(true); }
+void Pipeline::stop() {
+  impl_->stopping.store(true);
+  Impl::wake(impl_->odometry_wake);
+  Impl::wake(impl_->mapper_wake);
+}
 
 bool Pipeline::pop(ScanResult& out) { return impl_->results.pop(out); }
 

@@ -4,6 +4,8 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <random>
 #include <thread>
@@ -355,6 +357,55 @@ TEST(Runtime, LiveInputOverloadDropsTheOldestScans) {
   }
   // Copying 40 scans in takes milliseconds; waiting for the odometry would take seconds.
   EXPECT_LT(push_ms, 1000.0);
+}
+
+// Voluntary context switches of every thread of this process so far (/proc/self/task).
+long process_switches() {
+  long sum = 0;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream in(task.path() / "status");
+    for (std::string line; std::getline(in, line);) {
+      if (line.rfind("voluntary_ctxt_switches:", 0) == 0) sum += std::stol(line.substr(24));
+    }
+  }
+  return sum;
+}
+
+// Live, the odometry and mapper threads sleep while no scan comes (a few wake-ups in half a
+// second, not one every 100 us each), wake for the scans pushed, and wake to end.
+TEST(Runtime, LiveThreadsSleepWhileNoScanComes) {
+  const auto scans = simulated_scans(sim::SceneKind::kStreet, 0.5);
+  ASSERT_GE(scans.size(), 3u);
+  PipelineOptions o;
+  o.live = true;
+  o.mapper = true;
+  o.scan_ring = 8;
+  PosePublisher publisher{PublisherOptions{}};
+  Pipeline pipeline(o, 150'000, publisher);
+  pipeline.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // both threads waiting
+  const long before = process_switches();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const long idle = process_switches() - before;
+  EXPECT_LT(idle, 50) << "wake-ups in 0.5 s with nothing to do";
+
+  for (std::size_t i = 0; i < 3; ++i) {
+    ASSERT_TRUE(pipeline.push(scans[i], std::chrono::steady_clock::now()));
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (pipeline.stats().scans_done < 3 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_EQ(pipeline.stats().scans_done, 3u);
+  const auto t0 = std::chrono::steady_clock::now();
+  pipeline.close_input(true);
+  pipeline.join();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
+  ScanResult r;
+  std::size_t results = 0;
+  while (pipeline.pop(r)) ++results;
+  EXPECT_EQ(results, 3u);
+  EXPECT_TRUE(pipeline.done());
 }
 
 TEST(SocketCan, SendsOnVcan0WhereTheKernelHasIt) {

@@ -1,7 +1,10 @@
 // The live receiver gets every packet of a simulated capture sent over loopback at the sensor's
-// rate, and refuses packets from another source address.
+// rate, and refuses packets from another source address; a consumer waiting for packets sleeps
+// rather than polls, and wakes for a packet or a stop.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
+#include <atomic>
 #include <boost/asio.hpp>
 #include <thread>
 #include <utility>
@@ -76,6 +79,68 @@ TEST(UdpSource, ReceivesEveryPacketAtSensorRateAndRejectsOtherSources) {
   for (std::size_t k = 0; k < packets.size(); ++k) {
     ASSERT_EQ(received[k], packets[k]) << "packet " << k;
   }
+}
+
+// Voluntary context switches of the calling thread so far.
+long thread_switches() {
+  rusage u{};
+  getrusage(RUSAGE_THREAD, &u);
+  return u.ru_nvcsw;
+}
+
+// With nothing arriving, next() sleeps until its timeout (a few wake-ups, not one every few
+// hundred microseconds), a packet ends the wait at once, and so does stop().
+TEST(UdpSource, AWaitingConsumerSleepsAndWakesForAPacketOrAStop) {
+  UdpOptions o;
+  o.bind_address = "127.0.0.1";
+  o.data_port = 0;
+  o.position_port = 0;
+  auto opened = UdpSource::open(o);
+  ASSERT_TRUE(opened) << opened.error().message;
+  UdpSource& source = *opened.value();
+  using Clock = std::chrono::steady_clock;
+  const auto ms_since = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
+
+  io::SourcePacket in;
+  std::atomic<long> idle_switches{-1};
+  std::atomic<double> timeout_ms{0.0}, packet_ms{0.0}, stop_ms{0.0};
+  std::atomic<int> results{0};
+  std::atomic<bool> waiting_for_packet{false}, waiting_for_stop{false};
+  std::thread consumer([&] {
+    const long before = thread_switches();
+    auto t = Clock::now();
+    if (source.next(in, std::chrono::milliseconds(300)) == io::NextResult::kTimeout) ++results;
+    timeout_ms = ms_since(t);
+    idle_switches = thread_switches() - before;
+    t = Clock::now();
+    waiting_for_packet = true;
+    if (source.next(in, std::chrono::seconds(20)) == io::NextResult::kPacket) ++results;
+    packet_ms = ms_since(t);
+    t = Clock::now();
+    waiting_for_stop = true;
+    if (source.next(in, std::chrono::seconds(20)) == io::NextResult::kEnd) ++results;
+    stop_ms = ms_since(t);
+  });
+  const auto wait_until = [](const std::atomic<bool>& flag) {
+    while (!flag.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // asleep in next() by now
+  };
+  wait_until(waiting_for_packet);
+  boost::asio::io_context io;
+  udp::socket sensor(io, udp::endpoint(boost::asio::ip::make_address("127.0.0.1"), 0));
+  const std::array<std::uint8_t, 1206> payload{};
+  sensor.send_to(boost::asio::buffer(payload),
+                 udp::endpoint(boost::asio::ip::make_address("127.0.0.1"), source.data_port()));
+  wait_until(waiting_for_stop);
+  source.stop();
+  consumer.join();
+  EXPECT_EQ(results.load(), 3);
+  EXPECT_GE(timeout_ms.load(), 299.0);
+  EXPECT_LT(idle_switches.load(), 30);  // polling every 200 us would be about 1,500
+  EXPECT_LT(packet_ms.load(), 2000.0);  // the packet came after 100 ms
+  EXPECT_LT(stop_ms.load(), 2000.0);    // stop() after 100 ms
 }
 
 TEST(UdpSource, BindFailureNamesTheAddress) {
