@@ -17,6 +17,15 @@ namespace {
 
 using boost::asio::ip::udp;
 
+// Data packets on a free loopback port; no position port.
+UdpOptions loopback_any_port() {
+  UdpOptions o;
+  o.bind_address = "127.0.0.1";
+  o.data_port = 0;
+  o.position_port = 0;
+  return o;
+}
+
 TEST(UdpSource, ReceivesEveryPacketAtSensorRateAndRejectsOtherSources) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 1.0, 2, 1);
   sim::LidarSimOptions so;
@@ -27,10 +36,7 @@ TEST(UdpSource, ReceivesEveryPacketAtSensorRateAndRejectsOtherSources) {
   while (simulator.next(p)) packets.push_back(p.payload);
   ASSERT_EQ(packets.size(), 754u);
 
-  UdpOptions o;
-  o.bind_address = "127.0.0.1";
-  o.data_port = 0;  // any free port
-  o.position_port = 0;
+  UdpOptions o = loopback_any_port();
   o.sensor_ip = io::IpAddress::parse("127.0.0.1");
   auto opened = UdpSource::open(o);
   ASSERT_TRUE(opened) << opened.error().message;
@@ -91,11 +97,7 @@ long thread_switches() {
 // With nothing arriving, next() sleeps until its timeout (a few wake-ups, not one every few
 // hundred microseconds), a packet ends the wait at once, and so does stop().
 TEST(UdpSource, AWaitingConsumerSleepsAndWakesForAPacketOrAStop) {
-  UdpOptions o;
-  o.bind_address = "127.0.0.1";
-  o.data_port = 0;
-  o.position_port = 0;
-  auto opened = UdpSource::open(o);
+  auto opened = UdpSource::open(loopback_any_port());
   ASSERT_TRUE(opened) << opened.error().message;
   UdpSource& source = *opened.value();
   using Clock = std::chrono::steady_clock;
@@ -144,11 +146,7 @@ TEST(UdpSource, AWaitingConsumerSleepsAndWakesForAPacketOrAStop) {
 }
 
 TEST(UdpSource, BindFailureNamesTheAddress) {
-  UdpOptions o;
-  o.bind_address = "127.0.0.1";
-  o.data_port = 0;
-  o.position_port = 0;
-  auto first = UdpSource::open(o);
+  auto first = UdpSource::open(loopback_any_port());
   ASSERT_TRUE(first);
   UdpOptions bad;
   bad.bind_address = "not-an-address";
