@@ -95,9 +95,10 @@ struct Pipeline::Impl {
       results_dropped{0}, keyframes{0}, allocations{0}, page_faults{0};
   std::atomic<bool> counting{false};
   // Bumped (and the waiting thread woken) whenever there may be something new for the odometry
-  // thread (a scan in the ring, the input closed, a stop) and for the mapper thread (a scan in
-  // the key ring, the odometry done, a stop): they sleep on these instead of polling.
-  std::atomic<std::uint32_t> odometry_wake{0}, mapper_wake{0};
+  // thread (a scan in the ring, the input closed, a stop), for the mapper thread (a scan in the
+  // key ring, the odometry done, a stop) and, in replay, for the input (room in the scan ring, a
+  // scan slot freed, a stop): they sleep on these instead of polling.
+  std::atomic<std::uint32_t> odometry_wake{0}, mapper_wake{0}, input_wake{0};
   static void wake(std::atomic<std::uint32_t>& w) noexcept {
     w.fetch_add(1, std::memory_order_release);
     w.notify_one();
@@ -160,6 +161,18 @@ struct Pipeline::Impl {
     }
   }
 
+  // Waits (replay) for `ok()` to hold, asleep on `w` between tries; false when stopping. `ok`
+  // must become true only with a bump of `w` (or a stop) after it.
+  template <class F>
+  bool wait_on(std::atomic<std::uint32_t>& w, F&& ok) {
+    for (;;) {
+      const std::uint32_t seen = w.load(std::memory_order_acquire);
+      if (ok()) return true;
+      if (stopping.load()) return false;
+      w.wait(seen, std::memory_order_acquire);
+    }
+  }
+
   // Waits (replay) for `ok()` to hold; false when stopping.
   template <class F>
   bool wait_for(F&& ok) {
@@ -187,14 +200,17 @@ struct Pipeline::Impl {
         odometry_wake.wait(seen, std::memory_order_acquire);  // until a scan or a stop comes
         continue;
       }
+      wake(input_wake);  // replay: room in the ring
       // Live: the input found the ring full; the oldest scans (this one first) give way.
       if (options.live && take_drop_request()) {
         free_slots.push(idx);
+        wake(input_wake);
         scans_dropped.fetch_add(1, std::memory_order_relaxed);
         continue;
       }
       if (stopping.load() || (input_closed.load() && !drain.load())) {
         free_slots.push(idx);  // a shutdown: the scans still queued are not processed
+        wake(input_wake);
         continue;
       }
       ScanSlot& slot = slots[idx];
@@ -209,6 +225,7 @@ struct Pipeline::Impl {
       const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
       res.published = r.pose;
       free_slots.push(idx);
+      wake(input_wake);
       bool publishing = true;
       if (mapper != nullptr) {
         const bool handed =
@@ -481,7 +498,7 @@ bool Pipeline::push(const core::Scan& scan, std::chrono::steady_clock::time_poin
     } else if (!m.free_slots.pop(idx)) {
       return false;  // cannot happen with the pool's size
     }
-  } else if (!m.wait_for([&] { return m.free_slots.pop(idx); })) {
+  } else if (!m.wait_on(m.input_wake, [&] { return m.free_slots.pop(idx); })) {
     return false;
   }
   ScanSlot& slot = m.slots[idx];
@@ -501,7 +518,7 @@ bool Pipeline::push(const core::Scan& scan, std::chrono::steady_clock::time_poin
     return true;
   }
   // Stopped while waiting: the slot stays out of the pool, which is going away.
-  if (!m.wait_for([&] { return m.full.push(idx); })) return false;
+  if (!m.wait_on(m.input_wake, [&] { return m.full.push(idx); })) return false;
   Impl::wake(m.odometry_wake);
   return true;
 }
@@ -534,6 +551,7 @@ void Pipeline::stop() {
   impl_->stopping.store(true);
   Impl::wake(impl_->odometry_wake);
   Impl::wake(impl_->mapper_wake);
+  Impl::wake(impl_->input_wake);
 }
 
 bool Pipeline::pop(ScanResult& out) { return impl_->results.pop(out); }
