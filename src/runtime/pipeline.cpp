@@ -161,6 +161,12 @@ struct Pipeline::Impl {
     }
   }
 
+  // Gives a scan slot back to the input (which, in replay, may be waiting for one).
+  void release_slot(std::uint32_t idx) noexcept {
+    free_slots.push(idx);
+    wake(input_wake);
+  }
+
   // Waits (replay) for `ok()` to hold, asleep on `w` between tries; false when stopping. `ok`
   // must become true only with a bump of `w` (or a stop) after it.
   template <class F>
@@ -203,14 +209,12 @@ struct Pipeline::Impl {
       wake(input_wake);  // replay: room in the ring
       // Live: the input found the ring full; the oldest scans (this one first) give way.
       if (options.live && take_drop_request()) {
-        free_slots.push(idx);
-        wake(input_wake);
+        release_slot(idx);
         scans_dropped.fetch_add(1, std::memory_order_relaxed);
         continue;
       }
       if (stopping.load() || (input_closed.load() && !drain.load())) {
-        free_slots.push(idx);  // a shutdown: the scans still queued are not processed
-        wake(input_wake);
+        release_slot(idx);  // a shutdown: the scans still queued are not processed
         continue;
       }
       ScanSlot& slot = slots[idx];
@@ -224,8 +228,7 @@ struct Pipeline::Impl {
       const slam::OdometryResult& r = res.odometry;
       const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
       res.published = r.pose;
-      free_slots.push(idx);
-      wake(input_wake);
+      release_slot(idx);
       bool publishing = true;
       if (mapper != nullptr) {
         const bool handed =

@@ -37,6 +37,11 @@ std::size_t Downsampler::home_slot(std::int64_t key) const {
          mask_;
 }
 
+std::size_t Downsampler::recent_slot(std::int64_t key) {
+  return static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >>
+                                  (64 - kRecentBits));
+}
+
 void Downsampler::prefetch(const Eigen::Vector3d& p) const {
   __builtin_prefetch(&table_[home_slot(key_of(p))]);
 }
@@ -57,8 +62,7 @@ std::int32_t Downsampler::find_or_add(std::int64_t key) {
 
 void Downsampler::bin(const Eigen::Vector3d& p, double t) {
   const std::int64_t key = key_of(p);
-  Recent& recent = recent_[static_cast<std::size_t>(
-      (static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL) >> (64 - kRecentBits))];
+  Recent& recent = recent_[recent_slot(key)];
   std::int32_t index = recent.index;
   if (recent.key != key) {
     index = find_or_add(key);

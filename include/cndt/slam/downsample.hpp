@@ -49,6 +49,7 @@ class Downsampler {
   static constexpr int kRecentBits = 8;
   [[nodiscard]] std::int64_t key_of(const Eigen::Vector3d& p) const;
   [[nodiscard]] std::size_t home_slot(std::int64_t key) const;
+  [[nodiscard]] static std::size_t recent_slot(std::int64_t key);  // in recent_
   void prefetch(const Eigen::Vector3d& p) const;
   // The cell of `key`, a new one when there is room; -1 when the cells are full.
   std::int32_t find_or_add(std::int64_t key);
