@@ -34,6 +34,10 @@ void register_sim(CLI::App& app, SimArgs& a) {
   cmd->add_option("--drop-rate", a.drop_rate, "Fraction of packets lost, 0..0.9")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 0.9));
+  cmd->add_option("--outage", a.outage,
+                  "START SECONDS: nothing arrives for SECONDS from START seconds into the drive "
+                  "(a data outage; the ground truth keeps every scan)")
+      ->expected(2);
   cmd->add_flag("--dual", a.dual, "Dual-return mode (last and strongest)");
   cmd->add_option("--rpm", a.rpm, "Rotation speed, 300..1200 in steps of 60 (VLP-16 manual)")
       ->capture_default_str();
@@ -60,6 +64,10 @@ int run_sim(const SimArgs& a) {
     spdlog::error("--start-time: {} is not a Unix time in seconds", a.start_time_s);
     return core::kExitUsage;
   }
+  if (!a.outage.empty() && !(a.outage.size() == 2 && a.outage[0] >= 0 && a.outage[1] > 0)) {
+    spdlog::error("--outage: expected START SECONDS with START >= 0 and SECONDS > 0");
+    return core::kExitUsage;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed);
   sim::LidarSimOptions o;
@@ -67,6 +75,10 @@ int run_sim(const SimArgs& a) {
   o.dual = a.dual;
   o.noise_m = a.noise_m;
   o.drop_rate = a.drop_rate;
+  if (a.outage.size() == 2) {
+    o.outage_start_s = a.outage[0];
+    o.outage_s = a.outage[1];
+  }
   o.duration_s = a.duration_s;
   o.seed = a.seed;
   o.start_time_ns = static_cast<std::int64_t>(std::llround(a.start_time_s * 1e9));

@@ -57,13 +57,22 @@ double LidarSimulator::rotor_deg(std::int64_t t_rel_ns) const {
   return std::fmod(deg, 360.0);
 }
 
+namespace {
+// Whether time t_rel_ns after the start falls in the options' outage.
+bool in_outage(const LidarSimOptions& o, std::int64_t t_rel_ns) {
+  const double t = static_cast<double>(t_rel_ns) * 1e-9;
+  return o.outage_s > 0 && t >= o.outage_start_s && t < o.outage_start_s + o.outage_s;
+}
+}  // namespace
+
 bool LidarSimulator::next(SimPacket& packet, std::vector<TruePoint>* truth) {
   const std::int64_t t0 = static_cast<std::int64_t>(next_index_) * period_ns_;
   if (t0 >= end_ns_) return false;
   packet.index = next_index_++;
   packet.sensor_time_ns = options_.start_time_ns + t0;
-  packet.dropped =
-      options_.drop_rate > 0 && uniform(options_.seed, kDrop, packet.index) < options_.drop_rate;
+  packet.dropped = (options_.drop_rate > 0 &&
+                    uniform(options_.seed, kDrop, packet.index) < options_.drop_rate) ||
+                   in_outage(options_, t0);
   // A receiver stamps the packet a little after its last firing.
   packet.capture_time_ns =
       packet.sensor_time_ns + period_ns_ + 150'000 +
@@ -217,8 +226,10 @@ core::Result<SimSummary> write_simulation(const Scene& scene, const LidarSimOpti
     if (packet.index % 14 == 7) {
       const std::int64_t t = packet.sensor_time_ns + sim.packet_period_ns() / 2;
       const auto pos = sim.position_packet(t);
-      if (options.drop_rate <= 0 ||
-          uniform(options.seed, kDrop, ~packet.index) >= options.drop_rate) {
+      const bool lost = (options.drop_rate > 0 &&
+                         uniform(options.seed, kDrop, ~packet.index) < options.drop_rate) ||
+                        in_outage(options, t - options.start_time_ns);
+      if (!lost) {
         writer.value()->write_udp(std::chrono::nanoseconds(t + 200'000), pos_ep,
                                   core::ByteSpan(pos));
         ++sum.position_packets;

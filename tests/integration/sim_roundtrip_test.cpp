@@ -157,6 +157,38 @@ TEST(SimRoundTrip, PacketLossIsCountedAndScanTimesHold) {
   EXPECT_GE(matched, static_cast<int>(d.gt_times.size()) * 8 / 10);
 }
 
+// An outage loses every packet for its length: the assembler sees one gap, cuts the revolution
+// in progress there and starts a partial one where the data resumes; the ground truth keeps
+// every scan.
+TEST(SimRoundTrip, AnOutageIsOneGapTheAssemblerCuts) {
+  test::TempDir dir;
+  LidarSimOptions o;
+  o.duration_s = 3.0;
+  o.outage_start_s = 1.23;
+  o.outage_s = 0.5;
+  const Decoded d = simulate_and_decode(dir, SceneKind::kStreet, o);
+  EXPECT_EQ(d.report.assembler.gaps, 1u);
+  EXPECT_NEAR(static_cast<double>(d.report.assembler.lost_packets), 0.5 / 1327.104e-6, 2.0);
+  EXPECT_NEAR(static_cast<double>(d.gt_times.size()), 31.0, 1.0);
+  const auto t0 = o.start_time_ns;
+  int cut = 0, resumed = 0;
+  for (const auto& s : d.report.scans) {
+    const double from = static_cast<double>(s.stamp.count() - t0) * 1e-9;
+    const double to = static_cast<double>(s.end.count() - t0) * 1e-9;
+    EXPECT_FALSE(to > 1.23 + 1e-3 && from < 1.73 - 1e-3) << "a scan from " << from << " to " << to;
+    if ((s.flags & core::kScanGapCut) != 0) {
+      ++cut;
+      EXPECT_NEAR(to, 1.23, 2e-3);
+    }
+    if ((s.flags & core::kScanPartial) != 0 && from > 1.0) {
+      ++resumed;
+      EXPECT_NEAR(from, 1.73, 2e-3);
+    }
+  }
+  EXPECT_EQ(cut, 1);
+  EXPECT_EQ(resumed, 1);
+}
+
 TEST(SimRoundTrip, DualReturnCaptureAcrossTheHour) {
   test::TempDir dir;
   LidarSimOptions o;

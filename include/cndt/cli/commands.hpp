@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "cndt/cli/capture.hpp"
 
@@ -63,6 +64,7 @@ struct SimArgs {
   std::uint64_t world_seed = 0;  ///< 0: the same as seed
   int movers = 4;
   double drop_rate = 0.0;
+  std::vector<double> outage;  // start and length, s
   bool dual = false;
   int rpm = 600;
   double noise_m = 0.01;

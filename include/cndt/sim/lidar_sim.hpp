@@ -22,6 +22,9 @@ struct LidarSimOptions {
   bool dual = false;       ///< dual return (last + strongest)
   double noise_m = 0.01;   ///< range noise, 1 sigma
   double drop_rate = 0.0;  ///< fraction of packets lost on the way
+  /// Nothing arrives (data or position packets) for outage_s seconds from outage_start_s after
+  /// the start: a cable pulled, a switch restarting.
+  double outage_start_s = 0.0, outage_s = 0.0;
   double dropout = 0.002;  ///< fraction of returns the sensor misses
   double max_range_m = 100.0;
   std::int64_t start_time_ns = 1'767'225'600'000'000'000;  ///< 2026-01-01T00:00:00Z
