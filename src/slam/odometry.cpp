@@ -74,24 +74,29 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   }
 }
 
-core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0) {
+core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
+                                            double along_radius) {
   // Without a velocity the coarse objective can be too flat near x0 for Newton to leave it (a
-  // vehicle already moving when the first scans arrive). Score a horizontal grid of offsets on
-  // the coarsest grid and start from the best.
+  // vehicle already moving when the first scans arrive); after a gap in the data the velocity
+  // is old and the prediction off along the way. Score a horizontal grid of offsets on the
+  // coarsest grid and start from the best.
   if (pyramid_.empty() || options_.start_search_radius <= 0.0) return x0;
   const ndt::VoxelGrid& g = pyramid_.front();
   const double step = 0.25 * g.options().voxel_size;
   const int n = static_cast<int>(std::floor(options_.start_search_radius / step));
+  const int m = std::max(n, static_cast<int>(std::floor(along_radius / step)));
+  Eigen::Vector2d along(heading.x(), heading.y());
+  along = along.norm() > 1e-9 ? along.normalized() : Eigen::Vector2d::UnitX();
+  const Eigen::Vector2d across(-along.y(), along.x());
   core::Pose6 best = x0;
   double best_score =
       ndt::ndt_score(g, test_, x0, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
           .score;
-  for (int i = -n; i <= n; ++i) {
+  for (int i = -m; i <= m; ++i) {
     for (int j = -n; j <= n; ++j) {
       if (i == 0 && j == 0) continue;
       core::Pose6 x = x0;
-      x(0) += i * step;
-      x(1) += j * step;
+      x.head<2>() += step * (i * along + j * across);
       const double s =
           ndt::ndt_score(g, test_, x, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
               .score;
@@ -384,7 +389,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   OdometryResult res;
   res.stamp = scan.stamp;
   if (!scan.complete()) res.flags |= kOdomScanIncomplete;
-  if (!have_prev_ && options_.skip_partial_first_scan && (scan.flags & core::kScanPartial) != 0) {
+  if (options_.skip_partial_scans && (scan.flags & core::kScanPartial) != 0) {
     res.flags |= kOdomSkipped;
     return res;
   }
@@ -397,6 +402,10 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   period_s_ = have_prev2_ ? prev_period_s_ : (scan.complete() && span > 0.01 ? span : 0.1);
   const Eigen::Isometry3d motion =
       have_prev2_ ? scale_motion(prev_motion_, dt / period_s_) : Eigen::Isometry3d::Identity();
+  // More than half a period without firings since the last scan: a gap in the data.
+  const bool after_gap =
+      have_prev2_ && static_cast<double>((scan.stamp - prev_end_).count()) * 1e-9 > 0.5 * period_s_;
+  const bool trusted = prediction_trusted_ && !after_gap;
   // In range, then downsampled: map_cell for the reference and Cv, scan_cell for matching.
   raw_.clear();
   const double min2 = options_.min_range * options_.min_range;
@@ -434,6 +443,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     // Not deskewed: the stamp and mid-revolution frames coincide.
     if (options_.deskew_to_mid_scan) stamp_points_ = cv_points_;
     prev_stamp_ = scan.stamp;
+    prev_end_ = scan.end;
     have_prev_ = true;
     return res;
   }
@@ -449,9 +459,17 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   } else {
     core::Pose6 x0 = core::to_pose6(predicted);
     prior_.center = x0;
-    prior_.relative_weight = prediction_trusted_ ? options_.prior_weight : 0.0;
+    prior_.relative_weight = trusted ? options_.prior_weight : 0.0;
     if (options_.guess_jitter_seed != 0) jitter(x0);
-    if (!have_prev2_) x0 = search_start(x0);
+    if (!have_prev2_) {
+      x0 = search_start(x0, Eigen::Vector3d::UnitX(), 0.0);
+    } else if (after_gap) {
+      // Along the predicted motion, as far as the vehicle may have sped up or slowed down.
+      const double along =
+          std::min(options_.gap_search_radius,
+                   options_.start_search_radius + 0.5 * options_.gap_acceleration * dt * dt);
+      x0 = search_start(x0, predicted.translation() - prev_pose_.translation(), along);
+    }
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
     bool converged = false;
     int passes = 1 + options_.deskew_refinements;
@@ -494,7 +512,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     // off the constant-velocity prediction; the other half of the allowance is for the error
     // of the velocity itself.
     const double max_jump = options_.max_acceleration * dt * dt;
-    if (options_.max_acceleration > 0.0 && prediction_trusted_ &&
+    if (options_.max_acceleration > 0.0 && trusted &&
         (res.pose.translation() - predicted.translation()).norm() > max_jump) {
       res.flags |= kOdomRematched;
       deskew_for(predicted_deskew, core::to_pose6(predicted));
@@ -532,6 +550,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   reference_due_ = true;  // at prev_pose_, set next
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;
+  prev_end_ = scan.end;
   if (options_.deskew && options_.deskew_to_mid_scan) {
     // Reported at the scan stamp, half the deskew's motion before mid-revolution; the points
     // for the mapper likewise.

@@ -65,10 +65,19 @@ struct OdometryOptions {
   /// street drive drifts to an ATE of 0.71 m (0.19 m without), which the mapper then does not
   /// correct (docs/odometry.md).
   bool deskew_to_mid_scan = false;
-  /// A stream's first scan is usually a partial revolution (the receiver started mid-turn). As
-  /// the first reference it covers only a sector and the start-up matches drift off by
-  /// decimetres; skipped, the trajectory starts at the first whole revolution.
-  bool skip_partial_first_scan = true;
+  /// A partial revolution (the stream's first, where the receiver started mid-turn, or the first
+  /// after a gap in the data) is not matched: flag kOdomSkipped, no pose. As the first reference
+  /// it covers only a sector and the start-up matches drift off by decimetres; after a gap it is
+  /// a sector seen from metres past the local map, and matched it took the next scans with it
+  /// (docs/odometry.md, "Gaps in the data"). The trajectory goes on at the next whole revolution.
+  bool skip_partial_scans = true;
+  /// After a gap in the data (more than half a scan period without firings) the
+  /// constant-velocity prediction is off by what the vehicle sped up or slowed down meanwhile:
+  /// it is not trusted (no position prior, no acceleration check), and the start search looks
+  /// along the heading up to start_search_radius + gap_acceleration dt^2 / 2 from it (dt the
+  /// time since the last scan; at most gap_search_radius), across it start_search_radius.
+  double gap_acceleration = 2.0;    ///< m/s^2
+  double gap_search_radius = 10.0;  ///< m
   /// The matches solve for the scan's motion with its pose (ndt::ScanMotion). A match ending
   /// beyond that model's first-order range (0.1 m / 0.01 rad from the pose the scan was
   /// deskewed for) is deskewed again and matched again, at most this many times.
@@ -87,7 +96,7 @@ struct OdometryOptions {
   double pyramid_eigen_floor = 0.05;
   /// Before the first match there is no velocity: horizontal offsets up to this far (m) from
   /// the start are scored on the coarsest grid and the best one is the start.
-  double start_search_radius = 2.0;
+  double start_search_radius = 2.0;  ///< after a gap in the data see gap_acceleration
   bool pyramid_every_scan = true;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
   ndt::NewtonOptions pyramid{.max_iterations = 10,
@@ -214,7 +223,10 @@ class ConsensusOdometry {
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
   void jitter(core::Pose6& x);  // guess_jitter_seed: moves x by at most 0.5e-9 per coordinate
-  core::Pose6 search_start(const core::Pose6& x0);  // best of a grid of horizontal offsets
+  // The best of a grid of horizontal offsets from x0 on the coarsest grid: along `heading` up to
+  // max(along_radius, start_search_radius), across it start_search_radius.
+  core::Pose6 search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
+                           double along_radius);
   void add_to_grids(std::span<const Eigen::Vector3d> points);
   void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
@@ -281,6 +293,7 @@ class ConsensusOdometry {
   // guess_jitter_seed's generator: the next counter value for core::mix64.
   std::uint64_t jitter_state_ = 0;
   std::chrono::nanoseconds prev_stamp_{0};
+  std::chrono::nanoseconds prev_end_{0};  // the last firing of the last scan given a pose
   double prev_period_s_ = 0.1;
 };
 
