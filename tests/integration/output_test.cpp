@@ -187,19 +187,27 @@ TEST(UdpReceiver, GivesTheTimeTheKernelTookTheDatagramIn) {
   auto tx = cndt::net::UdpSender::open("127.0.0.1", rx.value()->port());
   ASSERT_TRUE(tx) << tx.error().message;
   const std::array<std::uint8_t, 5> payload{1, 2, 3, 4, 5};
-  const auto before = std::chrono::system_clock::now();
-  ASSERT_TRUE(tx.value()->send(cndt::core::ByteSpan(payload)));
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  std::array<std::uint8_t, 16> buf{};
-  std::chrono::system_clock::time_point arrival{};
-  const auto n = rx.value()->receive(buf, std::chrono::milliseconds(1000), &arrival);
-  const auto after = std::chrono::system_clock::now();
-  ASSERT_TRUE(n);
-  EXPECT_EQ(*n, payload.size());
-  EXPECT_TRUE(std::equal(payload.begin(), payload.end(), buf.begin()));
-  EXPECT_GE(arrival, before - std::chrono::milliseconds(5));  // the clock's own resolution
-  EXPECT_LT(arrival, before + std::chrono::milliseconds(100));
-  EXPECT_GE(after - arrival, std::chrono::milliseconds(150));
+  // The kernel turns its receive stamping on a moment after the first socket asks for it (a
+  // deferred switch); until then a datagram is stamped when it is read. So the datagram is sent
+  // again, up to three times, until one is stamped on arrival, 200 ms before it is read.
+  bool on_arrival = false;
+  for (int attempt = 0; attempt < 3 && !on_arrival; ++attempt) {
+    const auto before = std::chrono::system_clock::now();
+    ASSERT_TRUE(tx.value()->send(cndt::core::ByteSpan(payload)));
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    std::array<std::uint8_t, 16> buf{};
+    std::chrono::system_clock::time_point arrival{};
+    const auto n = rx.value()->receive(buf, std::chrono::milliseconds(1000), &arrival);
+    const auto after = std::chrono::system_clock::now();
+    ASSERT_TRUE(n);
+    EXPECT_EQ(*n, payload.size());
+    EXPECT_TRUE(std::equal(payload.begin(), payload.end(), buf.begin()));
+    EXPECT_GE(arrival, before - std::chrono::milliseconds(5));  // the clock's own resolution
+    EXPECT_LE(arrival, after);
+    on_arrival = arrival < before + std::chrono::milliseconds(100) &&
+                 after - arrival >= std::chrono::milliseconds(150);
+  }
+  EXPECT_TRUE(on_arrival);
 
   ASSERT_TRUE(tx.value()->send(cndt::core::ByteSpan(payload)));
   std::array<std::uint8_t, 3> small{};
