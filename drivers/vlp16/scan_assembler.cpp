@@ -47,11 +47,19 @@ std::pair<std::uint32_t, std::uint32_t> firing_span(const DecodedPacket& p) {
 
 ScanAssembler::Continuity ScanAssembler::check_continuity(const DecodedPacket& packet,
                                                           std::chrono::nanoseconds packet_time,
+                                                          std::chrono::nanoseconds received,
                                                           std::uint32_t& lost) {
   const auto [first, last] = firing_span(packet);
   const std::chrono::nanoseconds first_time = packet_time + std::chrono::nanoseconds(first);
   const std::chrono::nanoseconds last_time = packet_time + std::chrono::nanoseconds(last);
   check_skip_delay(packet, packet_time);
+  // The receive clock's step over the last two packets, when all three times are known and it
+  // moved on. Two: a packet is sent after its last firing, so a silence that begins inside a
+  // packet shows in the receive times one packet before it shows in the sensor clock.
+  const std::chrono::nanoseconds received_dt = received - received_before_[1];
+  const bool receive_steady = received.count() != 0 && received_before_[0].count() != 0 &&
+                              received_before_[1].count() != 0 && received_dt.count() > 0;
+  received_before_ = {received, received_before_[0]};
   if (!have_last_) {
     have_last_ = true;
     last_packet_time_ = packet_time;
@@ -71,6 +79,16 @@ ScanAssembler::Continuity ScanAssembler::check_continuity(const DecodedPacket& p
     // A repeat of a packet, or one that overlaps the firings already taken.
     ++stats_.stale_packets;
     return Continuity::kStale;
+  }
+  if (dt > options_.max_gap && receive_steady && received_dt < options_.max_gap &&
+      received_dt < dt / 4) {
+    // The sensor clock stepped forward while the packets kept coming (a time source taking
+    // over): nothing was lost, and the times before and after the step do not compare.
+    ++stats_.time_jumps;
+    last_packet_time_ = packet_time;
+    last_point_time_ = last_time;
+    last_silence_.valid = false;
+    return Continuity::kJump;
   }
   last_packet_time_ = packet_time;
   last_point_time_ = last_time;

@@ -127,7 +127,7 @@ void Driver::decode_and_add(core::ByteSpan payload, const PacketHeader& header,
   if (!stats_.first_packet_time) stats_.first_packet_time = t;
   stats_.last_packet_time = t;
   stats_.hour_rollovers = clock_.rollovers();
-  assembler_.add(decoded_, t, sink);
+  assembler_.add(decoded_, t, sink, reference);
   ++stats_.decoded_packets;
 }
 

@@ -5,6 +5,7 @@
 // silence, the cut moves into the middle of it and the silence no longer counts as loss.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -38,9 +39,9 @@ struct AssemblerStats {
   std::uint64_t complete_scans = 0;  ///< scans with no flag set
   std::uint64_t lost_packets = 0;    ///< estimated from sensor-clock gaps
   std::uint64_t gaps = 0;            ///< places where packets were missing
-  std::uint64_t time_jumps = 0;      ///< sensor clock went backwards by more than max_gap
-  std::uint64_t stale_packets = 0;   ///< repeated or overlapping an earlier packet; dropped
-  std::uint64_t points = 0;          ///< points in handed-out scans
+  std::uint64_t time_jumps = 0;     ///< clock went back, or on while packets kept coming, > max_gap
+  std::uint64_t stale_packets = 0;  ///< repeated or overlapping an earlier packet; dropped
+  std::uint64_t points = 0;         ///< points in handed-out scans
   std::uint64_t points_dropped = 0;  ///< points refused for capacity
   std::uint64_t fov_silences = 0;    ///< silences over the field-of-view gap, not counted as loss
   std::uint64_t azimuth_jumps = 0;   ///< jumps inside a packet that the next packet's time refuted
@@ -54,9 +55,12 @@ class ScanAssembler {
 
   /// Adds one decoded packet whose first firing happened at `packet_time` (absolute). Each scan
   /// that completes is passed to `sink(core::Scan&)`; the sink may swap the scan's contents for an
-  /// empty scan of the same capacity. The assembler allocates nothing here.
+  /// empty scan of the same capacity. The assembler allocates nothing here. `received`, when
+  /// known (not 0), is when the packet was received or captured: a sensor-clock step forward
+  /// longer than max_gap while packets kept arriving is a clock jump, not lost data.
   template <class Sink>
-  void add(const DecodedPacket& packet, std::chrono::nanoseconds packet_time, Sink&& sink);
+  void add(const DecodedPacket& packet, std::chrono::nanoseconds packet_time, Sink&& sink,
+           std::chrono::nanoseconds received = std::chrono::nanoseconds{0});
 
   /// Hands out the scan in progress (flagged kScanEndOfStream), if it has any firing.
   template <class Sink>
@@ -70,7 +74,7 @@ class ScanAssembler {
   enum class Continuity { kContinuous, kLoss, kGap, kJump, kStale, kFovFound };
   // Compares the packet's time with the previous packet's: loss, long silence or clock jump.
   Continuity check_continuity(const DecodedPacket& packet, std::chrono::nanoseconds packet_time,
-                              std::uint32_t& lost);
+                              std::chrono::nanoseconds received, std::uint32_t& lost);
   // A silence of `missing` packet periods ended at this packet: takes out what the field-of-view
   // gap explains (learning the gap from two revolutions in a row) and says what remains.
   Continuity classify_silence(const DecodedPacket& packet, std::chrono::nanoseconds packet_time,
@@ -129,6 +133,8 @@ class ScanAssembler {
   std::uint32_t next_lost_ = 0;
   bool have_last_ = false;
   std::chrono::nanoseconds last_packet_time_{0};
+  // Receive times of the last two packets, newest first; 0 = unknown.
+  std::array<std::chrono::nanoseconds, 2> received_before_{};
   std::chrono::nanoseconds last_point_time_{0};  // latest firing accepted so far
   int last_rel_ = 0;
   // Field-of-view gap detection.
@@ -175,9 +181,9 @@ void ScanAssembler::flush(Sink&& sink) {
 
 template <class Sink>
 void ScanAssembler::add(const DecodedPacket& packet, std::chrono::nanoseconds packet_time,
-                        Sink&& sink) {
+                        Sink&& sink, std::chrono::nanoseconds received) {
   std::uint32_t lost = 0;
-  const Continuity continuity = check_continuity(packet, packet_time, lost);
+  const Continuity continuity = check_continuity(packet, packet_time, received, lost);
   if (skip_refuted_) {
     // This packet's firings would come before the ones already given the refuted delay: the
     // scan ends there, so that its point times never decrease.

@@ -20,11 +20,20 @@ struct Collected {
   std::size_t capacity = 0;  // of the assembler's buffer when the scan was handed out
 };
 
+// When the packets were received, as the assembler is told.
+enum class Received {
+  kUnknown,    // not given
+  kWithClock,  // in step with the sensor clock, gaps included (an outage)
+  kSteady,     // one packet period apart whatever the sensor clock does (a clock jump)
+};
+
 // Feeds `packets` VLP-16 packets at 600 rpm (40 cdeg per block) from azimuth `start`, skipping
-// the packet indices in `skip`.
+// the packet indices in `skip`; the sensor clock moves on by `extra_gap_ns` more at packet
+// `extra_gap_at`.
 std::vector<Collected> run(int packets, int start, AssemblerOptions opt = {},
                            std::vector<int> skip = {}, std::int64_t extra_gap_at = -1,
-                           std::int64_t extra_gap_ns = 0) {
+                           std::int64_t extra_gap_ns = 0, Received received = Received::kUnknown,
+                           AssemblerStats* stats = nullptr) {
   Decoder dec(Model::kVlp16, {});
   ScanAssembler as(opt, 1327.104);
   std::vector<Collected> out;
@@ -47,10 +56,14 @@ std::vector<Collected> run(int packets, int start, AssemblerOptions opt = {},
     PacketHeader h;
     EXPECT_EQ(validate_data_packet(b.span(), h), PacketError::kNone);
     dec.decode(b.span(), h, dp);
-    as.add(dp, nanoseconds(t), sink);
+    const std::int64_t rx = received == Received::kUnknown  ? 0
+                            : received == Received::kSteady ? 2'000'000'000'000 + k * kPeriodNs
+                                                            : t + 500'000;
+    as.add(dp, nanoseconds(t), sink, nanoseconds(rx));
     t += kPeriodNs;
   }
   as.flush(sink);
+  if (stats != nullptr) *stats = as.stats();
   return out;
 }
 
@@ -114,6 +127,32 @@ TEST(ScanAssembler, ALongSilenceEndsTheScan) {
   int gap_cut = 0;
   for (const auto& c : scans) gap_cut += (c.scan.flags & core::kScanGapCut) ? 1 : 0;
   EXPECT_EQ(gap_cut, 1);
+}
+
+// The sensor clock steps 5 s on at packet 120. Received in step with it, that is an outage: a
+// gap that ends the scan, packets counted lost. Received one period apart as always, it is a
+// clock jump: nothing lost, the scan ends there flagged, and the next one starts flagged too.
+TEST(ScanAssembler, AClockSteppingOnWhilePacketsKeepComingIsAJumpNotLoss) {
+  AssemblerStats outage, jump, unknown;
+  const auto a = run(300, 0, {}, {}, 120, 5'000'000'000, Received::kWithClock, &outage);
+  const auto b = run(300, 0, {}, {}, 120, 5'000'000'000, Received::kSteady, &jump);
+  run(300, 0, {}, {}, 120, 5'000'000'000, Received::kUnknown, &unknown);
+  EXPECT_EQ(outage.gaps, 1u);
+  EXPECT_NEAR(static_cast<double>(outage.lost_packets), 5e9 / kPeriodNs, 1.0);
+  EXPECT_EQ(outage.time_jumps, 0u);
+  EXPECT_EQ(unknown.gaps, 1u);  // without receive times the two cannot be told apart
+  EXPECT_EQ(jump.gaps, 0u);
+  EXPECT_EQ(jump.lost_packets, 0u);
+  EXPECT_EQ(jump.time_jumps, 1u);
+  int cut = 0, jumped = 0;
+  for (const auto& c : a) cut += (c.scan.flags & core::kScanGapCut) ? 1 : 0;
+  for (const auto& c : b) {
+    jumped += (c.scan.flags & core::kScanTimeJump) ? 1 : 0;
+    EXPECT_EQ(c.scan.flags & core::kScanGapCut, 0u);
+    EXPECT_EQ(c.scan.lost_packets, 0u);
+  }
+  EXPECT_EQ(cut, 1);
+  EXPECT_EQ(jumped, 2);  // the scan the jump ended and the one it began
 }
 
 TEST(ScanAssembler, ClockGoingBackwardsIsFlagged) {
