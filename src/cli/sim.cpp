@@ -38,6 +38,11 @@ void register_sim(CLI::App& app, SimArgs& a) {
                   "START SECONDS: nothing arrives for SECONDS from START seconds into the drive "
                   "(a data outage; the ground truth keeps every scan)")
       ->expected(2);
+  cmd->add_option("--clock-step", a.clock_step,
+                  "AT SECONDS: from AT seconds into the drive the sensor's clock reads SECONDS "
+                  "more (negative: less), as when a time source takes over; packets keep coming "
+                  "on time, and the ground truth stays on the true clock")
+      ->expected(2);
   cmd->add_flag("--dual", a.dual, "Dual-return mode (last and strongest)");
   cmd->add_option("--rpm", a.rpm, "Rotation speed, 300..1200 in steps of 60 (VLP-16 manual)")
       ->capture_default_str();
@@ -68,6 +73,14 @@ int run_sim(const SimArgs& a) {
     spdlog::error("--outage: expected START SECONDS with START >= 0 and SECONDS > 0");
     return core::kExitUsage;
   }
+  if (!a.clock_step.empty() &&
+      !(a.clock_step.size() == 2 && a.clock_step[0] >= 0 && a.clock_step[1] != 0 &&
+        a.start_time_s + a.clock_step[0] + a.clock_step[1] >= 0)) {
+    spdlog::error(
+        "--clock-step: expected AT SECONDS with AT >= 0, SECONDS not 0 and the clock staying "
+        "after 1970");
+    return core::kExitUsage;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed);
   sim::LidarSimOptions o;
@@ -78,6 +91,10 @@ int run_sim(const SimArgs& a) {
   if (a.outage.size() == 2) {
     o.outage_start_s = a.outage[0];
     o.outage_s = a.outage[1];
+  }
+  if (a.clock_step.size() == 2) {
+    o.clock_step_at_s = a.clock_step[0];
+    o.clock_step_s = a.clock_step[1];
   }
   o.duration_s = a.duration_s;
   o.seed = a.seed;

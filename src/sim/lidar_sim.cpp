@@ -69,13 +69,16 @@ bool LidarSimulator::next(SimPacket& packet, std::vector<TruePoint>* truth) {
   const std::int64_t t0 = static_cast<std::int64_t>(next_index_) * period_ns_;
   if (t0 >= end_ns_) return false;
   packet.index = next_index_++;
-  packet.sensor_time_ns = options_.start_time_ns + t0;
+  const bool stepped =
+      options_.clock_step_s != 0.0 && static_cast<double>(t0) * 1e-9 >= options_.clock_step_at_s;
+  packet.clock_offset_ns = stepped ? std::llround(options_.clock_step_s * 1e9) : 0;
+  packet.sensor_time_ns = options_.start_time_ns + t0 + packet.clock_offset_ns;
   packet.dropped = (options_.drop_rate > 0 &&
                     uniform(options_.seed, kDrop, packet.index) < options_.drop_rate) ||
                    in_outage(options_, t0);
   // A receiver stamps the packet a little after its last firing.
   packet.capture_time_ns =
-      packet.sensor_time_ns + period_ns_ + 150'000 +
+      options_.start_time_ns + t0 + period_ns_ + 150'000 +
       static_cast<std::int64_t>(100'000 * uniform(options_.seed, kJitter, packet.index));
   auto& p = packet.payload;
   core::MutableByteSpan bytes(p);
@@ -224,13 +227,14 @@ core::Result<SimSummary> write_simulation(const Scene& scene, const LidarSimOpti
     }
     // About 54 position packets a second, like the sensor (one per 14 data packets).
     if (packet.index % 14 == 7) {
-      const std::int64_t t = packet.sensor_time_ns + sim.packet_period_ns() / 2;
+      const std::int64_t t = packet.sensor_time_ns + sim.packet_period_ns() / 2;  // its clock
+      const std::int64_t t_true = t - packet.clock_offset_ns;
       const auto pos = sim.position_packet(t);
       const bool lost = (options.drop_rate > 0 &&
                          uniform(options.seed, kDrop, ~packet.index) < options.drop_rate) ||
-                        in_outage(options, t - options.start_time_ns);
+                        in_outage(options, t_true - options.start_time_ns);
       if (!lost) {
-        writer.value()->write_udp(std::chrono::nanoseconds(t + 200'000), pos_ep,
+        writer.value()->write_udp(std::chrono::nanoseconds(t_true + 200'000), pos_ep,
                                   core::ByteSpan(pos));
         ++sum.position_packets;
       }

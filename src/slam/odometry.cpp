@@ -389,13 +389,23 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   OdometryResult res;
   res.stamp = scan.stamp;
   if (!scan.complete()) res.flags |= kOdomScanIncomplete;
+  // The sensor clock jumped (back, or on while the data kept coming) before this revolution:
+  // its stamp does not compare with the last one's.
+  if ((scan.flags & (core::kScanTimeJump | core::kScanPartial)) ==
+      (core::kScanTimeJump | core::kScanPartial)) {
+    clock_jumped_ = true;
+  }
   if (options_.skip_partial_scans && (scan.flags & core::kScanPartial) != 0) {
     res.flags |= kOdomSkipped;
     return res;
   }
-  // Constant-velocity prediction (rescaled to this scan's time step).
-  const double dt =
-      have_prev_ ? static_cast<double>((scan.stamp - prev_stamp_).count()) * 1e-9 : 0.1;
+  // Constant-velocity prediction (rescaled to this scan's time step). Across a clock jump the
+  // data kept coming: this revolution follows the last one.
+  const bool jumped = have_prev_ && (clock_jumped_ || scan.stamp <= prev_stamp_);
+  clock_jumped_ = false;
+  const double dt = !have_prev_ ? 0.1
+                    : jumped    ? revolution_s_
+                                : static_cast<double>((scan.stamp - prev_stamp_).count()) * 1e-9;
   // One scan period: the time between the last two stamps, or at the start this scan's own
   // span when it is a whole revolution.
   const double span = static_cast<double>((scan.end - scan.stamp).count()) * 1e-9;
@@ -404,8 +414,11 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       have_prev2_ ? scale_motion(prev_motion_, dt / period_s_) : Eigen::Isometry3d::Identity();
   // More than half a period without firings since the last scan: a gap in the data.
   const bool after_gap =
-      have_prev2_ && static_cast<double>((scan.stamp - prev_end_).count()) * 1e-9 > 0.5 * period_s_;
-  const bool trusted = prediction_trusted_ && !after_gap;
+      have_prev2_ && !jumped &&
+      static_cast<double>((scan.stamp - prev_end_).count()) * 1e-9 > 0.5 * period_s_;
+  if (scan.complete() && span > 0.01) revolution_s_ = span;
+  // The prediction holds a velocity from before a gap, or a time step assumed across a jump.
+  const bool trusted = prediction_trusted_ && !after_gap && !jumped;
   // In range, then downsampled: map_cell for the reference and Cv, scan_cell for matching.
   raw_.clear();
   const double min2 = options_.min_range * options_.min_range;
@@ -463,7 +476,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) {
       x0 = search_start(x0, Eigen::Vector3d::UnitX(), 0.0);
-    } else if (after_gap) {
+    } else if (after_gap || jumped) {
       // Along the predicted motion, as far as the vehicle may have sped up or slowed down.
       const double along =
           std::min(options_.gap_search_radius,

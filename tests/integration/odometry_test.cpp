@@ -224,6 +224,51 @@ TEST(Odometry, AMostlyLostRevolutionIsNotMatched) {
   }
 }
 
+// The second half of `scan` alone, flagged partial: what the assembler hands out where the data
+// resumes mid-turn.
+core::Scan resumed_mid_turn(const core::Scan& whole) {
+  core::Scan scan = whole;
+  const auto half = static_cast<std::ptrdiff_t>(scan.points.size() / 2);
+  const auto skipped = scan.points[static_cast<std::size_t>(half)].time_ns;
+  scan.points.erase(scan.points.begin(), scan.points.begin() + half);
+  for (core::Point& p : scan.points) p.time_ns -= skipped;
+  scan.stamp += std::chrono::nanoseconds(skipped);
+  scan.flags |= core::kScanPartial;
+  return scan;
+}
+
+// The first half of `scan` alone: a revolution ended early (by a gap or a clock jump).
+core::Scan ended_mid_turn(const core::Scan& whole, std::uint32_t flag) {
+  core::Scan scan = whole;
+  scan.points.resize(scan.points.size() / 2);
+  scan.end = scan.stamp + std::chrono::nanoseconds(scan.points.back().time_ns);
+  scan.flags |= flag;
+  return scan;
+}
+
+// Every pair of consecutive poses in `est` (stamps in `truth_t`, the simulator's times) within
+// 5 cm of the truth's motion; returns how many pairs span more than a second.
+std::size_t expect_pairs_within_5cm(const std::vector<sim::ScanStart>& starts,
+                                    const std::vector<TimedPose>& est,
+                                    const std::vector<double>& truth_t) {
+  std::vector<Eigen::Isometry3d> gt;
+  for (const double t : truth_t) {
+    for (const auto& s : starts) {
+      if (std::abs(static_cast<double>(s.time_ns) * 1e-9 - t) < 1e-4) gt.push_back(s.pose);
+    }
+  }
+  EXPECT_EQ(gt.size(), est.size());
+  std::size_t long_pairs = 0;
+  for (std::size_t k = 0; k + 1 < est.size() && k + 1 < gt.size(); ++k) {
+    const Eigen::Isometry3d dg = gt[k].inverse() * gt[k + 1];
+    const Eigen::Isometry3d de = est[k].pose.inverse() * est[k + 1].pose;
+    if (truth_t[k + 1] - truth_t[k] > 1.0) ++long_pairs;
+    EXPECT_LT((dg.inverse() * de).translation().norm(), 0.05)
+        << "scans at " << truth_t[k] << " and " << truth_t[k + 1];
+  }
+  return long_pairs;
+}
+
 // Two seconds without data (a cable pulled, a switch restarting): the revolution the data resumes
 // in is a sector, and the vehicle has sped up or slowed down meanwhile. The sector is not
 // matched, and the next whole revolution is found from a search along the way: the motion over
@@ -236,46 +281,63 @@ TEST(Odometry, ResumesAfterAGapInTheData) {
   constexpr std::size_t kLast = 19, kResume = 40;  // scans 20..39 are lost
   ConsensusOdometry odometry({});
   std::vector<TimedPose> est;
+  std::vector<double> truth_t;
   for (std::size_t i = 0; i < scans.size(); ++i) {
     if (i > kLast && i < kResume) continue;
-    core::Scan scan = scans[i];
-    if (i == kResume) {  // the data resumes mid-turn: the revolution's second half only
-      const auto half = static_cast<std::ptrdiff_t>(scan.points.size() / 2);
-      const auto skipped = scan.points[static_cast<std::size_t>(half)].time_ns;
-      scan.points.erase(scan.points.begin(), scan.points.begin() + half);
-      for (core::Point& p : scan.points) p.time_ns -= skipped;
-      scan.stamp += std::chrono::nanoseconds(skipped);
-      scan.flags |= core::kScanPartial;
-    }
-    const OdometryResult r = odometry.process(scan);
+    const OdometryResult r = odometry.process(i == kResume ? resumed_mid_turn(scans[i]) : scans[i]);
     EXPECT_TRUE(r.pose.matrix().allFinite()) << "scan " << i;
     if (i == kResume) {
       EXPECT_NE(r.flags & kOdomSkipped, 0u);
-      continue;
     }
-    if ((r.flags & kOdomSkipped) == 0) {
-      est.push_back({static_cast<double>(scans[i].stamp.count()) * 1e-9, r.pose});
-    }
+    if ((r.flags & kOdomSkipped) != 0) continue;
+    const double t = static_cast<double>(scans[i].stamp.count()) * 1e-9;
+    est.push_back({t, r.pose});
+    truth_t.push_back(t);
   }
-  std::vector<TimedPose> gt;
-  for (const TimedPose& e : est) {
-    for (const auto& s : starts) {
-      if (std::abs(static_cast<double>(s.time_ns) * 1e-9 - e.t) < 1e-4) gt.push_back({e.t, s.pose});
+  EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 1u);
+  EXPECT_GT((starts[kResume + 1].pose.translation() - starts[kLast].pose.translation()).norm(),
+            10.0);  // the gap is long enough to matter
+}
+
+// The sensor clock steps 5 s back or on between two revolutions while the data keeps coming (a
+// time source taking over): the assembler ends the scan there and flags it and the next one. The
+// stamps after the step do not compare with those before, and the motion is still that of one
+// revolution. (Before, a step back gave a negative time step and the trajectory ran off by
+// kilometres; a step on was taken as 5 s of driving.)
+TEST(Odometry, AClockJumpIsNotMotion) {
+  std::vector<core::Scan> scans;
+  const auto starts = drive_street(3.0, 2, 3, [&](core::Scan& scan) { scans.push_back(scan); });
+  ASSERT_GE(scans.size(), 28u);
+  constexpr std::size_t kJump = 15;
+  for (const std::int64_t step_ns : {-5'000'000'000LL, 5'000'000'000LL}) {
+    ConsensusOdometry odometry({});
+    std::vector<TimedPose> est;
+    std::vector<double> truth_t;
+    auto shifted = [&](core::Scan scan) {
+      scan.stamp += std::chrono::nanoseconds(step_ns);
+      scan.end += std::chrono::nanoseconds(step_ns);
+      return scan;
+    };
+    for (std::size_t i = 0; i < scans.size(); ++i) {
+      // Revolution kJump: its first half ends at the step, its second half comes after it.
+      const core::Scan scan = i < kJump    ? scans[i]
+                              : i == kJump ? ended_mid_turn(scans[i], core::kScanTimeJump)
+                                           : shifted(scans[i]);
+      const OdometryResult r = odometry.process(scan);
+      EXPECT_TRUE(r.pose.matrix().allFinite()) << "scan " << i;
+      if (i == kJump) {
+        core::Scan rest = shifted(resumed_mid_turn(scans[i]));
+        rest.flags |= core::kScanTimeJump;
+        EXPECT_NE(odometry.process(rest).flags & kOdomSkipped, 0u);
+      }
+      if ((r.flags & kOdomSkipped) != 0) continue;
+      est.push_back({static_cast<double>(scan.stamp.count()) * 1e-9, r.pose});
+      truth_t.push_back(static_cast<double>(scans[i].stamp.count()) * 1e-9);
     }
+    SCOPED_TRACE(step_ns);
+    EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 0u);
+    EXPECT_GE(est.size(), scans.size() - 2);
   }
-  ASSERT_EQ(gt.size(), est.size());
-  std::size_t across = 0;
-  for (std::size_t k = 0; k + 1 < est.size(); ++k) {
-    const Eigen::Isometry3d dg = gt[k].pose.inverse() * gt[k + 1].pose;
-    const Eigen::Isometry3d de = est[k].pose.inverse() * est[k + 1].pose;
-    if (est[k + 1].t - est[k].t > 1.0) {
-      ++across;
-      EXPECT_GT(dg.translation().norm(), 10.0);  // the gap is long enough to matter
-    }
-    EXPECT_LT((dg.inverse() * de).translation().norm(), 0.05)
-        << "scans at " << est[k].t << " and " << est[k + 1].t;
-  }
-  EXPECT_EQ(across, 1u);
 }
 
 // The reference grid holds exactly the points of the scans in the local map: rebuilt from them,

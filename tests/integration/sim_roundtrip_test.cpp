@@ -189,6 +189,37 @@ TEST(SimRoundTrip, AnOutageIsOneGapTheAssemblerCuts) {
   EXPECT_EQ(resumed, 1);
 }
 
+// A clock step is no outage: every packet arrives, the assembler counts one clock jump and no
+// loss, and the scans after the step carry stamps that much later.
+TEST(SimRoundTrip, AClockStepIsAJumpNotLoss) {
+  for (const double step : {-2.0, 0.7}) {
+    test::TempDir dir;
+    LidarSimOptions o;
+    o.duration_s = 3.0;
+    o.clock_step_at_s = 1.23;
+    o.clock_step_s = step;
+    const Decoded d = simulate_and_decode(dir, SceneKind::kStreet, o);
+    SCOPED_TRACE(step);
+    EXPECT_EQ(d.report.assembler.time_jumps, 1u);
+    EXPECT_EQ(d.report.assembler.gaps, 0u);
+    EXPECT_EQ(d.report.assembler.lost_packets, 0u);
+    const std::int64_t shift = std::llround(step * 1e9);
+    int stepped = 0;
+    bool past = false;  // the scan the step began has come
+    for (const auto& s : d.report.scans) {
+      if ((s.flags & core::kScanTimeJump) != 0) {
+        past = past || (s.flags & core::kScanPartial) != 0;
+        continue;
+      }
+      if (s.flags != 0) continue;
+      // Every whole scan starts where a true scan starts, on the clock it was stamped with.
+      EXPECT_GE(match(d.gt_times, s.stamp.count() - (past ? shift : 0)), 0) << s.stamp.count();
+      stepped += past ? 1 : 0;
+    }
+    EXPECT_NEAR(stepped, 17, 1);  // the whole turns after 1.23 s
+  }
+}
+
 TEST(SimRoundTrip, DualReturnCaptureAcrossTheHour) {
   test::TempDir dir;
   LidarSimOptions o;

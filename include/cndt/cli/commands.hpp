@@ -64,7 +64,8 @@ struct SimArgs {
   std::uint64_t world_seed = 0;  ///< 0: the same as seed
   int movers = 4;
   double drop_rate = 0.0;
-  std::vector<double> outage;  // start and length, s
+  std::vector<double> outage;      // start and length, s
+  std::vector<double> clock_step;  // when and by how much, s
   bool dual = false;
   int rpm = 600;
   double noise_m = 0.01;

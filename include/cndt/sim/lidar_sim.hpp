@@ -25,6 +25,10 @@ struct LidarSimOptions {
   /// Nothing arrives (data or position packets) for outage_s seconds from outage_start_s after
   /// the start: a cable pulled, a switch restarting.
   double outage_start_s = 0.0, outage_s = 0.0;
+  /// From clock_step_at_s after the start the sensor's clock reads clock_step_s more (a time
+  /// source taking over); the packets keep coming on time, and the ground truth and the capture
+  /// times stay on the true clock.
+  double clock_step_at_s = 0.0, clock_step_s = 0.0;
   double dropout = 0.002;  ///< fraction of returns the sensor misses
   double max_range_m = 100.0;
   std::int64_t start_time_ns = 1'767'225'600'000'000'000;  ///< 2026-01-01T00:00:00Z
@@ -37,6 +41,7 @@ struct SimPacket {
   std::array<std::uint8_t, 1206> payload{};
   std::int64_t sensor_time_ns = 0;   ///< first firing of the packet, absolute
   std::int64_t capture_time_ns = 0;  ///< when a receiver would have stamped it
+  std::int64_t clock_offset_ns = 0;  ///< the sensor clock's reading minus the true time
   std::uint64_t index = 0;
   bool dropped = false;  ///< lost on the way: not to be written
 };
