@@ -38,6 +38,10 @@ void register_sim(CLI::App& app, SimArgs& a) {
                   "START SECONDS: nothing arrives for SECONDS from START seconds into the drive "
                   "(a data outage; the ground truth keeps every scan)")
       ->expected(2);
+  cmd->add_option("--stop", a.stop,
+                  "AT SECONDS: at AT seconds into the drive the vehicle brakes to a standstill "
+                  "(over 3 s), stands for SECONDS and pulls away again (over 3 s)")
+      ->expected(2);
   cmd->add_option("--clock-step", a.clock_step,
                   "AT SECONDS: from AT seconds into the drive the sensor's clock reads SECONDS "
                   "more (negative: less), as when a time source takes over; packets keep coming "
@@ -81,8 +85,16 @@ int run_sim(const SimArgs& a) {
         "after 1970");
     return core::kExitUsage;
   }
+  if (!a.stop.empty() && !(a.stop.size() == 2 && a.stop[0] >= 0 && a.stop[1] > 0)) {
+    spdlog::error("--stop: expected AT SECONDS with AT >= 0 and SECONDS > 0");
+    return core::kExitUsage;
+  }
   const auto t0 = std::chrono::steady_clock::now();
-  const sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed);
+  sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed);
+  if (a.stop.size() == 2) {
+    scene.stop_at_s = a.stop[0];
+    scene.stop_s = a.stop[1];
+  }
   sim::LidarSimOptions o;
   o.rpm = a.rpm;
   o.dual = a.dual;

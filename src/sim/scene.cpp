@@ -259,14 +259,31 @@ Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t s
   return sc;
 }
 
-double Scene::sensor_arc(double t) const {
-  // Speed varies +-20 % over 17 s: s(t) = v (t + a T / 2pi (1 - cos(2 pi t / T))).
+double Scene::drive_time(double t) const {
+  if (stop_s <= 0.0 || t <= stop_at_s) return t;
+  // d(drive time)/dt falls from 1 to 0 as (1 + cos) / 2 over the ramp, stays 0 for stop_s and
+  // rises back as (1 - cos) / 2.
+  const double r = stop_ramp_s, w = kPi / r;
+  const double braked = 0.5 * r;  // drive time passed while braking
+  double x = t - stop_at_s;
+  if (x < r) return stop_at_s + 0.5 * x + 0.5 * std::sin(w * x) / w;
+  x -= r + stop_s;
+  if (x < 0.0) return stop_at_s + braked;
+  if (x < r) return stop_at_s + braked + 0.5 * x - 0.5 * std::sin(w * x) / w;
+  return stop_at_s + braked + 0.5 * r + (x - r);
+}
+
+double Scene::sensor_arc(double t_true) const {
+  // Speed varies +-20 % over 17 s: s(t) = v (t + a T / 2pi (1 - cos(2 pi t / T))), t on the
+  // vehicle's own clock.
+  const double t = drive_time(t_true);
   constexpr double a = 0.2, T = 17.0;
   return speed * (t + a * T / (2 * kPi) * (1.0 - std::cos(2 * kPi * t / T)));
 }
 
-Eigen::Isometry3d Scene::sensor_pose(double t) const {
-  const double s = sensor_arc(t);
+Eigen::Isometry3d Scene::sensor_pose(double t_true) const {
+  const double s = sensor_arc(t_true);
+  const double t = drive_time(t_true);  // the body's sway stops with the vehicle
   const Eigen::Vector3d c = path.at(s);
   const double k = 2 * kPi / lateral_wavelength;
   const double lat = lateral_amplitude * std::sin(k * s);

@@ -340,6 +340,38 @@ TEST(Odometry, AClockJumpIsNotMotion) {
   }
 }
 
+// A street drive that brakes to a standstill, stands for 4 s among moving traffic and pulls away:
+// standing, the pose does not creep (the local map takes no scan, the movers are voted out);
+// every pair, braking and pulling away included, within 5 cm of the truth.
+TEST(Odometry, StandsStillThroughAStop) {
+  sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 14.0, 4, 3);
+  scene.stop_at_s = 2.0;  // braking 2-5 s, standing 5-9 s, pulling away 9-12 s
+  scene.stop_s = 4.0;
+  ConsensusOdometry odometry({});
+  std::vector<TimedPose> est;
+  std::vector<double> truth_t;
+  const auto starts = test::simulate_scene(scene, 14.0, 3, [&](core::Scan& scan) {
+    const OdometryResult r = odometry.process(scan);
+    EXPECT_TRUE(r.pose.matrix().allFinite());
+    if ((r.flags & kOdomSkipped) != 0) return;
+    const double t = static_cast<double>(scan.stamp.count()) * 1e-9;
+    est.push_back({t, r.pose});
+    truth_t.push_back(t);
+  });
+  ASSERT_GE(est.size(), 130u);
+  EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 0u);
+  // Standing: from 5.2 to 8.8 s after the start.
+  const double t0 = static_cast<double>(starts.front().time_ns) * 1e-9;
+  std::vector<Eigen::Isometry3d> standing;
+  for (const TimedPose& e : est) {
+    if (e.t > t0 + 5.2 && e.t < t0 + 8.8) standing.push_back(e.pose);
+  }
+  ASSERT_GE(standing.size(), 30u);
+  for (const Eigen::Isometry3d& p : standing) {
+    EXPECT_LT((standing.front().inverse() * p).translation().norm(), 0.01);
+  }
+}
+
 // The reference grid holds exactly the points of the scans in the local map: rebuilt from them,
 // every voxel has the same count and sums (up to the round-off of adding and removing).
 void expect_grid_holds(const ConsensusOdometry& odometry) {

@@ -284,6 +284,33 @@ double peak_yaw_acceleration(const Scene& scene, double duration_s) {
   return peak * 180.0 / std::numbers::pi;
 }
 
+// A stop: the sensor stands still for the stop's length, its speed falls to 0 and comes back
+// without a jump (at most 0.3 m/s from one 50 ms step to the next at 8 m/s), and after it the
+// drive goes on as before, the stop's length later.
+TEST(SimScene, AStopHoldsTheSensorStillBetweenSmoothRamps) {
+  Scene plain = build_scene(SceneKind::kStreet, 20.0, 0, 2);
+  Scene stopping = plain;
+  stopping.stop_at_s = 4.0;
+  stopping.stop_s = 5.0;
+  const double r = stopping.stop_ramp_s;
+  const Eigen::Vector3d still = stopping.sensor_pose(4.0 + r).translation();
+  for (double t = 4.0 + r; t <= 9.0 + r; t += 0.5) {
+    EXPECT_LT((stopping.sensor_pose(t).translation() - still).norm(), 1e-9) << t;
+  }
+  constexpr double kStep = 0.05;
+  double last_speed = plain.speed, peak_change = 0.0;
+  for (double t = kStep; t < 20.0; t += kStep) {
+    const double speed = (stopping.sensor_arc(t) - stopping.sensor_arc(t - kStep)) / kStep;
+    peak_change = std::max(peak_change, std::abs(speed - last_speed));
+    last_speed = speed;
+  }
+  EXPECT_LT(peak_change, 0.3);
+  EXPECT_LT(
+      (stopping.sensor_pose(18.0).translation() - plain.sensor_pose(18.0 - 5.0 - r).translation())
+          .norm(),
+      1e-6);
+}
+
 TEST(SimScene, YawRateIsContinuousThroughCorners) {
   // The loop's corners have a 20 m radius: 20 deg/s at 7 m/s, entered over a few metres.
   const Scene loop = build_scene(SceneKind::kLoop, 60.0, 0, 1);

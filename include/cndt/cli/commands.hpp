@@ -66,6 +66,7 @@ struct SimArgs {
   double drop_rate = 0.0;
   std::vector<double> outage;      // start and length, s
   std::vector<double> clock_step;  // when and by how much, s
+  std::vector<double> stop;        // when and how long, s
   bool dual = false;
   int rpm = 600;
   double noise_m = 0.01;

@@ -55,12 +55,18 @@ struct Scene {
   double sensor_height = 1.9;                                  ///< m above ground
   double lateral_amplitude = 1.0, lateral_wavelength = 140.0;  ///< lane changes
   double motion_scale = 1.0;  ///< scales pitch/roll/bounce (smaller indoors)
+  /// A stop: from stop_at_s the vehicle brakes to a standstill over stop_ramp_s, stands for
+  /// stop_s and pulls away again over stop_ramp_s (stop_s = 0: no stop).
+  double stop_at_s = 0.0, stop_s = 0.0, stop_ramp_s = 3.0;
   std::vector<Mover> movers;
 
   /// T_world_sensor at `t` seconds after the start.
   [[nodiscard]] Eigen::Isometry3d sensor_pose(double t) const;
   /// The sensor's arc length along the path at `t`.
   [[nodiscard]] double sensor_arc(double t) const;
+  /// The vehicle's own clock at `t`: t itself, less the time a stop held it (it runs at the
+  /// vehicle's share of its usual speed, 0 while standing).
+  [[nodiscard]] double drive_time(double t) const;
   /// Mover boxes placed for instant `t`.
   void movers_at(double t, std::vector<Box>& out) const;
 };
