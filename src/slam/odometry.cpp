@@ -395,6 +395,12 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       (core::kScanTimeJump | core::kScanPartial)) {
     clock_jumped_ = true;
   }
+  // The longest silence between scans (seen or skipped) since the last one given a pose.
+  if (last_seen_end_.count() != 0) {
+    silence_s_ =
+        std::max(silence_s_, static_cast<double>((scan.stamp - last_seen_end_).count()) * 1e-9);
+  }
+  last_seen_end_ = scan.end;
   if (options_.skip_partial_scans && (scan.flags & core::kScanPartial) != 0) {
     res.flags |= kOdomSkipped;
     return res;
@@ -413,9 +419,8 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   const Eigen::Isometry3d motion =
       have_prev2_ ? scale_motion(prev_motion_, dt / period_s_) : Eigen::Isometry3d::Identity();
   // More than half a period without firings since the last scan: a gap in the data.
-  const bool after_gap =
-      have_prev2_ && !jumped &&
-      static_cast<double>((scan.stamp - prev_end_).count()) * 1e-9 > 0.5 * period_s_;
+  const bool after_gap = have_prev2_ && !jumped && silence_s_ > 0.5 * period_s_;
+  silence_s_ = 0.0;
   if (scan.complete() && span > 0.01) revolution_s_ = span;
   // The prediction holds a velocity from before a gap, or a time step assumed across a jump.
   const bool trusted = prediction_trusted_ && !after_gap && !jumped;
@@ -456,7 +461,6 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     // Not deskewed: the stamp and mid-revolution frames coincide.
     if (options_.deskew_to_mid_scan) stamp_points_ = cv_points_;
     prev_stamp_ = scan.stamp;
-    prev_end_ = scan.end;
     have_prev_ = true;
     return res;
   }
@@ -563,7 +567,6 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   reference_due_ = true;  // at prev_pose_, set next
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;
-  prev_end_ = scan.end;
   if (options_.deskew && options_.deskew_to_mid_scan) {
     // Reported at the scan stamp, half the deskew's motion before mid-revolution; the points
     // for the mapper likewise.

@@ -293,9 +293,10 @@ class ConsensusOdometry {
   // guess_jitter_seed's generator: the next counter value for core::mix64.
   std::uint64_t jitter_state_ = 0;
   std::chrono::nanoseconds prev_stamp_{0};
-  std::chrono::nanoseconds prev_end_{0};  // the last firing of the last scan given a pose
-  bool clock_jumped_ = false;             // since the last scan given a pose
-  double revolution_s_ = 0.1;             // span of the last whole revolution
+  std::chrono::nanoseconds last_seen_end_{0};  // the last firing of the last scan seen
+  double silence_s_ = 0.0;     // the longest silence between scans since the last given a pose
+  bool clock_jumped_ = false;  // since the last scan given a pose
+  double revolution_s_ = 0.1;  // span of the last whole revolution
   double prev_period_s_ = 0.1;
 };
 
