@@ -81,9 +81,12 @@ ScanAssembler::Continuity ScanAssembler::check_continuity(const DecodedPacket& p
     return Continuity::kStale;
   }
   if (dt > options_.max_gap && receive_steady && received_dt < options_.max_gap &&
-      received_dt < dt / 4) {
-    // The sensor clock stepped forward while the packets kept coming (a time source taking
-    // over): nothing was lost, and the times before and after the step do not compare.
+      received_dt < dt / 4 && static_cast<double>(received_dt.count()) >= period_ns_) {
+    // The sensor clock stepped forward while the packets kept coming at their pace (a time
+    // source taking over): nothing was lost, and the times before and after the step do not
+    // compare. (Two packets received less than a period apart were read from a queue in a
+    // burst, as after the reader stalled and the socket dropped packets: their receive times
+    // say nothing about a silence between them.)
     ++stats_.time_jumps;
     last_packet_time_ = packet_time;
     last_point_time_ = last_time;

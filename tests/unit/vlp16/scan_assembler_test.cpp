@@ -25,6 +25,7 @@ enum class Received {
   kUnknown,    // not given
   kWithClock,  // in step with the sensor clock, gaps included (an outage)
   kSteady,     // one packet period apart whatever the sensor clock does (a clock jump)
+  kBurst,      // 10 us apart: read from a queue all at once
 };
 
 // Feeds `packets` VLP-16 packets at 600 rpm (40 cdeg per block) from azimuth `start`, skipping
@@ -56,9 +57,10 @@ std::vector<Collected> run(int packets, int start, AssemblerOptions opt = {},
     PacketHeader h;
     EXPECT_EQ(validate_data_packet(b.span(), h), PacketError::kNone);
     dec.decode(b.span(), h, dp);
-    const std::int64_t rx = received == Received::kUnknown  ? 0
-                            : received == Received::kSteady ? 2'000'000'000'000 + k * kPeriodNs
-                                                            : t + 500'000;
+    std::int64_t rx = t + 500'000;
+    if (received == Received::kUnknown) rx = 0;
+    if (received == Received::kSteady) rx = 2'000'000'000'000 + k * kPeriodNs;
+    if (received == Received::kBurst) rx = 2'000'000'000'000 + k * 10'000;
     as.add(dp, nanoseconds(t), sink, nanoseconds(rx));
     t += kPeriodNs;
   }
@@ -132,8 +134,12 @@ TEST(ScanAssembler, ALongSilenceEndsTheScan) {
 // The sensor clock steps 5 s on at packet 120. Received in step with it, that is an outage: a
 // gap that ends the scan, packets counted lost. Received one period apart as always, it is a
 // clock jump: nothing lost, the scan ends there flagged, and the next one starts flagged too.
+// Received in a burst (a reader catching up on its queue), the receive times say nothing: loss.
 TEST(ScanAssembler, AClockSteppingOnWhilePacketsKeepComingIsAJumpNotLoss) {
-  AssemblerStats outage, jump, unknown;
+  AssemblerStats outage, jump, unknown, burst;
+  run(300, 0, {}, {}, 120, 5'000'000'000, Received::kBurst, &burst);
+  EXPECT_EQ(burst.gaps, 1u);
+  EXPECT_EQ(burst.time_jumps, 0u);
   const auto a = run(300, 0, {}, {}, 120, 5'000'000'000, Received::kWithClock, &outage);
   const auto b = run(300, 0, {}, {}, 120, 5'000'000'000, Received::kSteady, &jump);
   run(300, 0, {}, {}, 120, 5'000'000'000, Received::kUnknown, &unknown);
