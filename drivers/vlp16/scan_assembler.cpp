@@ -67,8 +67,16 @@ ScanAssembler::Continuity ScanAssembler::check_continuity(const DecodedPacket& p
     return Continuity::kContinuous;
   }
   const std::chrono::nanoseconds dt = packet_time - last_packet_time_;
-  if (dt < -options_.max_gap) {
-    // The clock went far back (a sensor reset): start over from here.
+  // The sensor clock stepped forward while the packets kept coming at their pace (a time source
+  // taking over): nothing was lost. (Two packets received less than a period apart were read
+  // from a queue in a burst, as after the reader stalled and the socket dropped packets: their
+  // receive times say nothing about a silence between them.)
+  const bool stepped_on = dt > options_.max_gap && receive_steady &&
+                          received_dt < options_.max_gap && received_dt < dt / 4 &&
+                          static_cast<double>(received_dt.count()) >= period_ns_;
+  if (dt < -options_.max_gap || stepped_on) {
+    // The clock went far back (a sensor reset) or stepped on: the times before and after the
+    // step do not compare; start over from here.
     ++stats_.time_jumps;
     last_packet_time_ = packet_time;
     last_point_time_ = last_time;
@@ -79,19 +87,6 @@ ScanAssembler::Continuity ScanAssembler::check_continuity(const DecodedPacket& p
     // A repeat of a packet, or one that overlaps the firings already taken.
     ++stats_.stale_packets;
     return Continuity::kStale;
-  }
-  if (dt > options_.max_gap && receive_steady && received_dt < options_.max_gap &&
-      received_dt < dt / 4 && static_cast<double>(received_dt.count()) >= period_ns_) {
-    // The sensor clock stepped forward while the packets kept coming at their pace (a time
-    // source taking over): nothing was lost, and the times before and after the step do not
-    // compare. (Two packets received less than a period apart were read from a queue in a
-    // burst, as after the reader stalled and the socket dropped packets: their receive times
-    // say nothing about a silence between them.)
-    ++stats_.time_jumps;
-    last_packet_time_ = packet_time;
-    last_point_time_ = last_time;
-    last_silence_.valid = false;
-    return Continuity::kJump;
   }
   last_packet_time_ = packet_time;
   last_point_time_ = last_time;
