@@ -47,6 +47,9 @@ void register_sim(CLI::App& app, SimArgs& a) {
                   "more (negative: less), as when a time source takes over; packets keep coming "
                   "on time, and the ground truth stays on the true clock")
       ->expected(2);
+  cmd->add_option("--speed", a.speed,
+                  "Mean speed, m/s (default: the scene's own; it varies +-20 % over the drive)")
+      ->check(CLI::Range(0.1, 60.0));
   cmd->add_flag("--dual", a.dual, "Dual-return mode (last and strongest)");
   cmd->add_option("--rpm", a.rpm, "Rotation speed, 300..1200 in steps of 60 (VLP-16 manual)")
       ->capture_default_str();
@@ -90,7 +93,7 @@ int run_sim(const SimArgs& a) {
     return core::kExitUsage;
   }
   const auto t0 = std::chrono::steady_clock::now();
-  sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed);
+  sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed, a.speed);
   if (a.stop.size() == 2) {
     scene.stop_at_s = a.stop[0];
     scene.stop_s = a.stop[1];

@@ -144,7 +144,7 @@ std::string_view scene_name(SceneKind kind) {
 }
 
 Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t seed,
-                  std::uint64_t world_seed) {
+                  std::uint64_t world_seed, double speed) {
   Scene sc;
   sc.kind = kind;
   Rng rng(world_seed != 0 ? world_seed : seed, 0x5CE7E);
@@ -152,7 +152,7 @@ Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t s
   bool pedestrians = false;
   switch (kind) {
     case SceneKind::kStreet: {
-      sc.speed = 8.0;
+      sc.speed = speed > 0.0 ? speed : 8.0;
       sc.lateral_amplitude = 1.0;
       sc.lateral_wavelength = 140.0;
       const double len = sc.speed * duration_s * 1.3 + 100;
@@ -163,7 +163,7 @@ Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t s
       break;
     }
     case SceneKind::kCampus: {
-      sc.speed = 4.0;
+      sc.speed = speed > 0.0 ? speed : 4.0;
       sc.lateral_amplitude = 0.5;
       sc.lateral_wavelength = 90.0;
       const double len = sc.speed * duration_s * 1.3 + 100;
@@ -191,7 +191,7 @@ Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t s
       break;
     }
     case SceneKind::kCorridor: {
-      sc.speed = 1.2;
+      sc.speed = speed > 0.0 ? speed : 1.2;
       sc.sensor_height = 0.5;
       sc.lateral_amplitude = 0.25;
       sc.lateral_wavelength = 25.0;
@@ -230,7 +230,7 @@ Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t s
       break;
     }
     case SceneKind::kLoop: {
-      sc.speed = 7.0;
+      sc.speed = speed > 0.0 ? speed : 7.0;
       sc.lateral_amplitude = 0.8;
       sc.lateral_wavelength = 120.0;
       sc.path = loop_path(200, 120, 20);

@@ -311,6 +311,21 @@ TEST(SimScene, AStopHoldsTheSensorStillBetweenSmoothRamps) {
       1e-6);
 }
 
+// A speed given replaces the scene's own: the mean over the 17 s cycle of +-20 % is that speed,
+// and the path is long enough for the whole drive. Without one the street keeps its 8 m/s.
+TEST(SimScene, AGivenSpeedReplacesTheScenesOwn) {
+  const Scene plain = build_scene(SceneKind::kStreet, 20.0, 0, 2);
+  const Scene fast = build_scene(SceneKind::kStreet, 20.0, 0, 2, 0, 25.0);
+  EXPECT_DOUBLE_EQ(plain.speed, 8.0);
+  EXPECT_NEAR(plain.sensor_arc(17.0) / 17.0, 8.0, 1e-9);
+  EXPECT_NEAR(fast.sensor_arc(17.0) / 17.0, 25.0, 1e-9);
+  EXPECT_GT(fast.path.length(), fast.sensor_arc(20.0) + 50.0);
+  // Still moving at the end of the drive: the path has not run out under it.
+  const double last =
+      (fast.sensor_pose(20.0).translation() - fast.sensor_pose(19.9).translation()).norm();
+  EXPECT_NEAR(last, 0.1 * fast.speed, 0.3 * 0.1 * fast.speed);
+}
+
 TEST(SimScene, YawRateIsContinuousThroughCorners) {
   // The loop's corners have a 20 m radius: 20 deg/s at 7 m/s, entered over a few metres.
   const Scene loop = build_scene(SceneKind::kLoop, 60.0, 0, 1);

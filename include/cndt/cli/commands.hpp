@@ -62,6 +62,7 @@ struct SimArgs {
   std::string out_dir;
   std::uint64_t seed = 1;
   std::uint64_t world_seed = 0;  ///< 0: the same as seed
+  double speed = 0.0;            ///< m/s; 0: the scene's own
   int movers = 4;
   double drop_rate = 0.0;
   std::vector<double> outage;      // start and length, s

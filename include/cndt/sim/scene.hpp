@@ -73,8 +73,9 @@ struct Scene {
 
 /// Builds a scene long enough for `duration_s` of driving. Deterministic for a seed.
 /// `world_seed` draws the static world (0: the same as `seed`); `seed` the movers. Two captures
-/// of one world with different traffic share the world seed.
+/// of one world with different traffic share the world seed. `speed` (m/s) replaces the scene's
+/// own mean speed when positive; the world is then drawn along a path long enough for it.
 Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t seed,
-                  std::uint64_t world_seed = 0);
+                  std::uint64_t world_seed = 0, double speed = 0.0);
 
 }  // namespace cndt::sim
