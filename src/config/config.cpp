@@ -176,6 +176,12 @@ const std::vector<Field>& fields() {
        "for a wrong minimum and matched again from the prediction: a young reference can hold a "
        "scan near zero motion (0 = never; docs/odometry.md).",
        "m/s^2", 0, 1000},
+      {"odometry", "max_speed_mps", CNDT_REF(odometry.max_speed_mps),
+       "Top speed of the vehicle. The first match has no velocity to start from: horizontal "
+       "offsets up to 2 m are scored, and while the best lies on the edge of those scored the "
+       "search grows, up to the distance this speed covers between the first two scans (4 m at "
+       "40 m/s and 10 Hz, at most 10 m; 0 = no growing; docs/odometry.md).",
+       "m/s", 0, 100},
       {"odometry", "prior_weight", CNDT_REF(odometry.prior_weight),
        "Pull of every match towards the constant-velocity prediction's position, relative to "
        "the scene's strongest constraint on the position (the largest eigenvalue of the NDT "

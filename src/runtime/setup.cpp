@@ -92,6 +92,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.max_map_voxels = static_cast<std::size_t>(od.max_map_voxels);
   o.min_points = static_cast<std::size_t>(od.min_points);
   o.max_acceleration = od.max_acceleration_mps2;
+  o.max_speed = od.max_speed_mps;
   o.prior_weight = od.prior_weight;
   o.deskew_to_mid_scan = od.deskew_to_mid_scan;
   o.guess_jitter_seed = static_cast<std::uint64_t>(od.guess_jitter_seed);

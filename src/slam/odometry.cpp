@@ -75,36 +75,53 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
 }
 
 core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
-                                            double along_radius) {
+                                            double along_radius, double grow_to) {
   // Without a velocity the coarse objective can be too flat near x0 for Newton to leave it (a
   // vehicle already moving when the first scans arrive); after a gap in the data the velocity
   // is old and the prediction off along the way. Score a horizontal grid of offsets on the
-  // coarsest grid and start from the best.
+  // coarsest grid and start from the best. A best offset on the grid's edge may have a better
+  // one beyond it (a vehicle faster than the grid reaches): the grid then grows by a ring.
   if (pyramid_.empty() || options_.start_search_radius <= 0.0) return x0;
   const ndt::VoxelGrid& g = pyramid_.front();
   const double step = 0.25 * g.options().voxel_size;
-  const int n = static_cast<int>(std::floor(options_.start_search_radius / step));
-  const int m = std::max(n, static_cast<int>(std::floor(along_radius / step)));
+  int n = static_cast<int>(std::floor(options_.start_search_radius / step));
+  int m = std::max(n, static_cast<int>(std::floor(along_radius / step)));
+  const int limit = static_cast<int>(std::floor(grow_to / step));
   Eigen::Vector2d along(heading.x(), heading.y());
   along = along.norm() > 1e-9 ? along.normalized() : Eigen::Vector2d::UnitX();
   const Eigen::Vector2d across(-along.y(), along.x());
   core::Pose6 best = x0;
+  int best_i = 0, best_j = 0;
   double best_score =
       ndt::ndt_score(g, test_, x0, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
           .score;
-  for (int i = -m; i <= m; ++i) {
-    for (int j = -n; j <= n; ++j) {
-      if (i == 0 && j == 0) continue;
-      core::Pose6 x = x0;
-      x.head<2>() += step * (i * along + j * across);
-      const double s =
-          ndt::ndt_score(g, test_, x, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
-              .score;
-      if (s < best_score) {
-        best_score = s;
-        best = x;
+  // Offsets (i, j) within m along and n across, skipping those within (m_in, n_in).
+  auto scan_ring = [&](int m_in, int n_in) {
+    for (int i = -m; i <= m; ++i) {
+      for (int j = -n; j <= n; ++j) {
+        if (std::abs(i) <= m_in && std::abs(j) <= n_in) continue;
+        core::Pose6 x = x0;
+        x.head<2>() += step * (i * along + j * across);
+        const double s =
+            ndt::ndt_score(g, test_, x, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
+                .score;
+        if (s < best_score) {
+          best_score = s;
+          best = x;
+          best_i = i;
+          best_j = j;
+        }
       }
     }
+  };
+  scan_ring(0, 0);
+  auto on_edge = [&] {
+    return (m > 0 && std::abs(best_i) == m) || (n > 0 && std::abs(best_j) == n);
+  };
+  while (on_edge() && std::max(m, n) < limit) {
+    ++m;
+    ++n;
+    scan_ring(m - 1, n - 1);
   }
   return best;
 }
@@ -479,7 +496,8 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     prior_.relative_weight = trusted ? options_.prior_weight : 0.0;
     if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) {
-      x0 = search_start(x0, Eigen::Vector3d::UnitX(), 0.0);
+      x0 = search_start(x0, Eigen::Vector3d::UnitX(), 0.0,
+                        std::min(options_.max_speed * dt, options_.gap_search_radius));
     } else if (after_gap || jumped) {
       // Along the predicted motion, as far as the vehicle may have sped up or slowed down.
       const double along =

@@ -48,6 +48,7 @@ struct Config {
     std::int64_t max_map_voxels = 400'000;
     std::int64_t min_points = 200;
     double max_acceleration_mps2 = 10.0;
+    double max_speed_mps = 40.0;
     double prior_weight = 0.003;
     bool deskew_to_mid_scan = false;
     std::int64_t guess_jitter_seed = 0;

@@ -95,8 +95,12 @@ struct OdometryOptions {
   std::vector<double> pyramid_voxel_sizes = {2.0, 1.0};
   double pyramid_eigen_floor = 0.05;
   /// Before the first match there is no velocity: horizontal offsets up to this far (m) from
-  /// the start are scored on the coarsest grid and the best one is the start.
+  /// the start are scored on the coarsest grid and the best one is the start. While the best
+  /// lies on the edge of the offsets scored, the search grows outwards, up to what max_speed
+  /// covers between the first two scans.
   double start_search_radius = 2.0;  ///< after a gap in the data see gap_acceleration
+  /// The platform's top speed, m/s (144 km/h): how far the start search may reach.
+  double max_speed = 40.0;
   bool pyramid_every_scan = true;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
   ndt::NewtonOptions pyramid{.max_iterations = 10,
@@ -224,9 +228,10 @@ class ConsensusOdometry {
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
   void jitter(core::Pose6& x);  // guess_jitter_seed: moves x by at most 0.5e-9 per coordinate
   // The best of a grid of horizontal offsets from x0 on the coarsest grid: along `heading` up to
-  // max(along_radius, start_search_radius), across it start_search_radius.
+  // max(along_radius, start_search_radius), across it start_search_radius; grown one step
+  // outwards at a time while the best lies on its edge, up to grow_to (m) from x0.
   core::Pose6 search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
-                           double along_radius);
+                           double along_radius, double grow_to = 0.0);
   void add_to_grids(std::span<const Eigen::Vector3d> points);
   void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
