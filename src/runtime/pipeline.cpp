@@ -302,9 +302,8 @@ struct Pipeline::Impl {
     const bool skipped = (r.flags & slam::kOdomSkipped) != 0;
     if (res.map_corrected) {
       // A skipped scan has no pose to publish: the blend does not step.
-      const double stamp = static_cast<double>(r.stamp.count()) * 1e-9;
       const Eigen::Isometry3d& applied =
-          skipped ? blend.applied() : blend.step(correction, r.pose, stamp);
+          skipped ? blend.applied() : blend.step(correction, r.pose, r.dt);
       res.published = applied * r.pose;
     }
     if (!skipped) {

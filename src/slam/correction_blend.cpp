@@ -6,16 +6,13 @@
 namespace cndt::slam {
 
 const Eigen::Isometry3d& CorrectionBlend::step(const Eigen::Isometry3d& target,
-                                               const Eigen::Isometry3d& T_odom_sensor,
-                                               double stamp) {
-  const double dt = stamp - last_stamp_;
-  last_stamp_ = stamp;
+                                               const Eigen::Isometry3d& T_odom_sensor, double dt) {
   if (!started_ || time_constant_ <= 0.0) {
     started_ = true;
     applied_ = target;
     return applied_;
   }
-  // dt <= 0 (a repeated stamp) moves nothing; a long gap moves (almost) all the way.
+  // dt <= 0 moves nothing; a long gap in the data moves (almost) all the way.
   const double f = 1.0 - std::exp(-std::max(dt, 0.0) / time_constant_);
   const Eigen::Isometry3d from = applied_ * T_odom_sensor;  // published pose, applied correction
   const Eigen::Isometry3d delta = from.inverse() * target * T_odom_sensor;  // vehicle frame

@@ -568,6 +568,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.
+  res.dt = dt;
   prev_motion_ = prev_pose_.inverse() * res.pose;
   prev_period_s_ = std::max(dt, 1e-3);
   if (first_velocity && dt < 0.5 * period_s_) {

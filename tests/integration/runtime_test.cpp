@@ -191,8 +191,7 @@ Reference single_threaded(const PipelineOptions& o, const std::vector<core::Scan
     if ((r.flags & slam::kOdomTooFewPoints) == 0) {
       mapper.add(static_cast<double>(r.stamp.count()) * 1e-9, r.pose, odometry.scan_points());
     }
-    const double stamp = static_cast<double>(r.stamp.count()) * 1e-9;
-    ref.published.push_back(blend.step(mapper.correction(), r.pose, stamp) * r.pose);
+    ref.published.push_back(blend.step(mapper.correction(), r.pose, r.dt) * r.pose);
     ref.cm.push_back(r.cm);
   }
   return ref;

@@ -16,17 +16,18 @@ class CorrectionBlend {
   /// `time_constant` in seconds; 0 applies every new correction at once.
   explicit CorrectionBlend(double time_constant = 0.0) : time_constant_(time_constant) {}
 
-  /// The correction to publish the odometry pose `T_odom_sensor` (at `stamp`, s) with, the
-  /// mapper's newest being `target`. The first call takes `target` as it is.
+  /// The correction to publish the odometry pose `T_odom_sensor` with, `dt` seconds after the
+  /// last pose published (OdometryResult::dt: across a jump of the sensor clock, one revolution,
+  /// not the stamps' difference), the mapper's newest being `target`. The first call takes
+  /// `target` as it is.
   const Eigen::Isometry3d& step(const Eigen::Isometry3d& target,
-                                const Eigen::Isometry3d& T_odom_sensor, double stamp);
+                                const Eigen::Isometry3d& T_odom_sensor, double dt);
 
   [[nodiscard]] const Eigen::Isometry3d& applied() const { return applied_; }
 
  private:
   double time_constant_;
   bool started_ = false;
-  double last_stamp_ = 0.0;
   Eigen::Isometry3d applied_ = Eigen::Isometry3d::Identity();
 };
 

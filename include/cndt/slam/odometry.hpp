@@ -167,6 +167,9 @@ struct OdometryResult {
   /// Smallest over largest eigenvalue of the final match's Hessian, translation block (see
   /// OdometryOptions::degenerate_conditioning); 0 when the scan was not matched.
   double conditioning = 0.0;
+  /// Seconds since the last scan given a pose, as the motion model takes them: the stamps'
+  /// difference, or one revolution across a jump of the sensor clock; 0 for the first scan.
+  double dt = 0.0;
   std::uint32_t flags = 0;
 };
 
