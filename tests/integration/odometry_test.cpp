@@ -246,17 +246,46 @@ core::Scan ended_mid_turn(const core::Scan& whole, std::uint32_t flag) {
   return scan;
 }
 
-// Every pair of consecutive poses in `est` (stamps in `truth_t`, the simulator's times) within
-// 5 cm of the truth's motion; returns how many pairs span more than a second.
-std::size_t expect_pairs_within_5cm(const std::vector<sim::ScanStart>& starts,
-                                    const std::vector<TimedPose>& est,
-                                    const std::vector<double>& truth_t) {
+// The simulator's poses at the times `truth_t` (scan starts).
+std::vector<Eigen::Isometry3d> truth_at(const std::vector<sim::ScanStart>& starts,
+                                        const std::vector<double>& truth_t) {
   std::vector<Eigen::Isometry3d> gt;
   for (const double t : truth_t) {
     for (const auto& s : starts) {
       if (std::abs(static_cast<double>(s.time_ns) * 1e-9 - t) < 1e-4) gt.push_back(s.pose);
     }
   }
+  return gt;
+}
+
+// A fresh odometry over the first `seconds` of `scene` (`seed` for the sensor's noise): the
+// simulator's scan starts and the poses given (skipped scans left out, every pose finite), at
+// the scans' stamps.
+struct SceneRun {
+  std::vector<sim::ScanStart> starts;
+  std::vector<TimedPose> est;
+  std::vector<double> truth_t;
+};
+SceneRun run_scene(const sim::Scene& scene, double seconds, std::uint64_t seed) {
+  ConsensusOdometry odometry({});
+  SceneRun run;
+  run.starts = test::simulate_scene(scene, seconds, seed, [&](core::Scan& scan) {
+    const OdometryResult r = odometry.process(scan);
+    EXPECT_TRUE(r.pose.matrix().allFinite());
+    if ((r.flags & kOdomSkipped) != 0) return;
+    const double t = static_cast<double>(scan.stamp.count()) * 1e-9;
+    run.est.push_back({t, r.pose});
+    run.truth_t.push_back(t);
+  });
+  return run;
+}
+
+// Every pair of consecutive poses in `est` (stamps in `truth_t`, the simulator's times) within
+// 5 cm of the truth's motion; returns how many pairs span more than a second.
+std::size_t expect_pairs_within_5cm(const std::vector<sim::ScanStart>& starts,
+                                    const std::vector<TimedPose>& est,
+                                    const std::vector<double>& truth_t) {
+  const std::vector<Eigen::Isometry3d> gt = truth_at(starts, truth_t);
   EXPECT_EQ(gt.size(), est.size());
   std::size_t long_pairs = 0;
   for (std::size_t k = 0; k + 1 < est.size() && k + 1 < gt.size(); ++k) {
@@ -352,23 +381,13 @@ TEST(Odometry, StandsStillThroughAStop) {
   sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 14.0, 4, 3);
   scene.stop_at_s = 2.0;  // braking 2-5 s, standing 5-9 s, pulling away 9-12 s
   scene.stop_s = 4.0;
-  ConsensusOdometry odometry({});
-  std::vector<TimedPose> est;
-  std::vector<double> truth_t;
-  const auto starts = test::simulate_scene(scene, 14.0, 3, [&](core::Scan& scan) {
-    const OdometryResult r = odometry.process(scan);
-    EXPECT_TRUE(r.pose.matrix().allFinite());
-    if ((r.flags & kOdomSkipped) != 0) return;
-    const double t = static_cast<double>(scan.stamp.count()) * 1e-9;
-    est.push_back({t, r.pose});
-    truth_t.push_back(t);
-  });
-  ASSERT_GE(est.size(), 130u);
-  EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 0u);
+  const SceneRun run = run_scene(scene, 14.0, 3);
+  ASSERT_GE(run.est.size(), 130u);
+  EXPECT_EQ(expect_pairs_within_5cm(run.starts, run.est, run.truth_t), 0u);
   // Standing: from 5.2 to 8.8 s after the start.
-  const double t0 = static_cast<double>(starts.front().time_ns) * 1e-9;
+  const double t0 = static_cast<double>(run.starts.front().time_ns) * 1e-9;
   std::vector<Eigen::Isometry3d> standing;
-  for (const TimedPose& e : est) {
+  for (const TimedPose& e : run.est) {
     if (e.t > t0 + 5.2 && e.t < t0 + 8.8) standing.push_back(e.pose);
   }
   ASSERT_GE(standing.size(), 30u);
@@ -383,29 +402,14 @@ TEST(Odometry, StandsStillThroughAStop) {
 // (max_speed 0) the first match lands 1.1 m short and the next ones follow it.
 TEST(Odometry, StartsAtMotorwaySpeed) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 20.0, 4, 5, 0, 40.0);
-  ConsensusOdometry odometry({});
-  std::vector<TimedPose> est;
-  std::vector<double> truth_t;
-  const auto starts = test::simulate_scene(scene, 2.0, 5, [&](core::Scan& scan) {
-    const OdometryResult r = odometry.process(scan);
-    EXPECT_TRUE(r.pose.matrix().allFinite());
-    if ((r.flags & kOdomSkipped) != 0) return;
-    const double t = static_cast<double>(scan.stamp.count()) * 1e-9;
-    est.push_back({t, r.pose});
-    truth_t.push_back(t);
-  });
-  ASSERT_GE(est.size(), 18u);
-  std::vector<Eigen::Isometry3d> gt;
-  for (const double t : truth_t) {
-    for (const auto& s : starts) {
-      if (std::abs(static_cast<double>(s.time_ns) * 1e-9 - t) < 1e-4) gt.push_back(s.pose);
-    }
-  }
-  ASSERT_EQ(gt.size(), est.size());
+  const SceneRun run = run_scene(scene, 2.0, 5);
+  ASSERT_GE(run.est.size(), 18u);
+  const std::vector<Eigen::Isometry3d> gt = truth_at(run.starts, run.truth_t);
+  ASSERT_EQ(gt.size(), run.est.size());
   double worst = 0.0;
-  for (std::size_t k = 0; k + 1 < est.size(); ++k) {
+  for (std::size_t k = 0; k + 1 < gt.size(); ++k) {
     const Eigen::Isometry3d dg = gt[k].inverse() * gt[k + 1];
-    const Eigen::Isometry3d de = est[k].pose.inverse() * est[k + 1].pose;
+    const Eigen::Isometry3d de = run.est[k].pose.inverse() * run.est[k + 1].pose;
     EXPECT_GT(dg.translation().norm(), 3.0);
     worst = std::max(worst, (dg.inverse() * de).translation().norm());
   }
