@@ -99,7 +99,7 @@ struct OdometryOptions {
   /// lies on the edge of the offsets scored, the search grows outwards, up to what max_speed
   /// covers between the first two scans.
   double start_search_radius = 2.0;  ///< after a gap in the data see gap_acceleration
-  /// The platform's top speed, m/s (144 km/h): how far the start search may reach.
+  /// The platform's top speed, m/s (40 = 144 km/h): how far the start search may reach.
   double max_speed = 40.0;
   bool pyramid_every_scan = true;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
