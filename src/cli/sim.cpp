@@ -50,6 +50,11 @@ void register_sim(CLI::App& app, SimArgs& a) {
   cmd->add_option("--speed", a.speed,
                   "Mean speed, m/s (default: the scene's own; it varies +-20 % over the drive)")
       ->check(CLI::Range(0.1, 60.0));
+  cmd->add_option(
+         "--body-motion", a.body_motion,
+         "Scale of the body's pitch, roll and bounce (default: the scene's own, 1 outdoors "
+         "and 0.3 indoors; 0: a rigid platform on smooth ground)")
+      ->check(CLI::Range(0.0, 10.0));
   cmd->add_flag("--dual", a.dual, "Dual-return mode (last and strongest)");
   cmd->add_option("--rpm", a.rpm, "Rotation speed, 300..1200 in steps of 60 (VLP-16 manual)")
       ->capture_default_str();
@@ -94,6 +99,7 @@ int run_sim(const SimArgs& a) {
   }
   const auto t0 = std::chrono::steady_clock::now();
   sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed, a.speed);
+  if (a.body_motion >= 0.0) scene.motion_scale = a.body_motion;
   if (a.stop.size() == 2) {
     scene.stop_at_s = a.stop[0];
     scene.stop_s = a.stop[1];

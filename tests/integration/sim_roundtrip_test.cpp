@@ -326,6 +326,23 @@ TEST(SimScene, AGivenSpeedReplacesTheScenesOwn) {
   EXPECT_NEAR(last, 0.1 * fast.speed, 0.3 * 0.1 * fast.speed);
 }
 
+// Without body motion the sensor keeps its height and stays level: only the path turns it.
+TEST(SimScene, WithoutBodyMotionTheSensorStaysLevelAtItsHeight) {
+  Scene scene = build_scene(SceneKind::kStreet, 10.0, 0, 2);
+  double moving = 0.0;
+  for (double t = 0.0; t < 10.0; t += 0.37) {
+    moving =
+        std::max(moving, std::abs(scene.sensor_pose(t).translation().z() - scene.sensor_height));
+  }
+  EXPECT_GT(moving, 0.005);  // the scene's own sways
+  scene.motion_scale = 0.0;
+  for (double t = 0.0; t < 10.0; t += 0.37) {
+    const Eigen::Isometry3d T = scene.sensor_pose(t);
+    EXPECT_NEAR(T.translation().z(), scene.sensor_height, 1e-12) << t;
+    EXPECT_NEAR((T.linear() * Eigen::Vector3d::UnitZ()).z(), 1.0, 1e-12) << t;  // level
+  }
+}
+
 TEST(SimScene, YawRateIsContinuousThroughCorners) {
   // The loop's corners have a 20 m radius: 20 deg/s at 7 m/s, entered over a few metres.
   const Scene loop = build_scene(SceneKind::kLoop, 60.0, 0, 1);
