@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Starts at speed (docs/odometry.md, "Starting at speed"): 20 s street drives at 20-40 m/s and at 12-20 m/s
-# with the sensor at 300 rpm, loop and campus drives above their own speeds, seeds 5-7, replayed
-# with the start search held at 2 m (odometry.max_speed_mps = 0) and growing (the default), scored
-# by `cndt eval`. Prints per drive the worst frame-to-frame error of the first five pairs and the
-# ATE, held -> growing.
+# Starts at speed (docs/odometry.md, "Starting at speed"): 20 s street drives at 20-40 m/s and at
+# 12-20 m/s with the sensor at 300 rpm, loop and campus drives above their own speeds, seeds 5-7,
+# replayed with the start search held at 2 m (odometry.max_speed_mps = 0) and growing (the
+# default), scored by `cndt eval`. Prints per drive the worst frame-to-frame error of the first
+# five pairs and the ATE, held -> growing.
 # Usage: scripts/accuracy_speeds.sh [BUILD_DIR] [OUT_DIR]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
