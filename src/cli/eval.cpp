@@ -52,7 +52,9 @@ void register_eval(CLI::App& app, EvalArgs& a) {
       "eval",
       "Compare an estimated trajectory with ground truth (both TUM files) and print "
       "JSON: ATE RMSE after an SE(3) alignment, KITTI-style relative translational (%) "
-      "and rotational (deg/m) errors over path segments, and per-frame RPE");
+      "and rotational (deg/m) errors over path segments, per-frame RPE, and the errors of "
+      "dead reckoning from the first pose (start_aligned: position and height error at the "
+      "end, largest height error, tilt of the up axis at the end), which the ATE's fit hides");
   cmd->add_option("--gt", a.gt, "Ground-truth TUM file")->required();
   cmd->add_option("--est", a.est, "Estimated TUM file")->required();
 }
@@ -79,9 +81,12 @@ int run_eval(const EvalArgs& a) {
       "{{\n  \"matched\": {},\n  \"path_length_m\": {:.3f},\n  \"ate_rmse_m\": {:.4f},\n  "
       "\"ate_max_m\": {:.4f},\n  \"rte_percent\": {:.4f},\n  \"rre_deg_per_m\": {:.5f},\n  "
       "\"rpe_translation_rmse_m\": {:.5f},\n  \"rpe_rotation_rmse_deg\": {:.5f},\n  "
+      "\"start_aligned\": {{\"end_error_m\": {:.4f}, \"height_error_end_m\": {:.4f}, "
+      "\"height_error_max_m\": {:.4f}, \"tilt_end_deg\": {:.4f}}},\n  "
       "\"segment_lengths_m\": [{}],\n  \"rpe_per_frame\": [{}]\n}}\n",
       r.matched, r.path_length, r.ate_rmse, r.ate_max, r.rte_percent, r.rre_deg_per_m,
-      r.rpe_translation_rmse, r.rpe_rotation_rmse_deg, lengths, frames);
+      r.rpe_translation_rmse, r.rpe_rotation_rmse_deg, r.end_error, r.height_error_end,
+      r.height_error_max, r.tilt_end_deg, lengths, frames);
   return core::kExitOk;
 }
 

@@ -65,6 +65,17 @@ EvalResult evaluate(const std::vector<TimedPose>& ground_truth,
     r.ate_max = std::max(r.ate_max, e);
   }
   r.ate_rmse = std::sqrt(sum2 / static_cast<double>(src.cols()));
+  // From the first pose on, with nothing fitted afterwards.
+  const Eigen::Isometry3d start = gt.front() * est.front().inverse();
+  for (std::size_t i = 0; i < gt.size(); ++i) {
+    const double dz = (start * est[i]).translation().z() - gt[i].translation().z();
+    r.height_error_max = std::max(r.height_error_max, std::abs(dz));
+  }
+  const Eigen::Isometry3d last = start * est.back();
+  r.end_error = (last.translation() - gt.back().translation()).norm();
+  r.height_error_end = last.translation().z() - gt.back().translation().z();
+  const double up_cos = std::clamp(last.linear().col(2).dot(gt.back().linear().col(2)), -1.0, 1.0);
+  r.tilt_end_deg = std::acos(up_cos) * kRadToDeg;
   // Per-frame relative pose error.
   double st = 0.0, sr = 0.0;
   std::vector<double> dist(gt.size(), 0.0);

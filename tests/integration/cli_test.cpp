@@ -137,8 +137,10 @@ TEST(CliReplay, WritesTrajectoryScansAndSummaryThatEvalReads) {
   }
   r = run("eval --gt " + dir.file("s/groundtruth.tum") + " --est " + dir.file("r/trajectory.tum"));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("\"ate_rmse_m\""), std::string::npos);
-  EXPECT_NE(r.output.find("\"matched\": 5"), std::string::npos) << r.output;
+  for (const char* key : {"\"ate_rmse_m\"", "\"matched\": 5", "\"start_aligned\"",
+                          "\"height_error_end_m\"", "\"tilt_end_deg\""}) {
+    EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
+  }
 }
 
 // Every text a replay writes, lower-cased: a NaN or an infinity shows as "nan" or "inf".

@@ -1,5 +1,6 @@
 // Trajectory accuracy: absolute trajectory error after an SE(3) alignment, per-frame relative
-// pose error, and KITTI-style relative errors over path segments.
+// pose error, KITTI-style relative errors over path segments, and the drift of dead reckoning
+// from the first pose (height and tilt).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -26,6 +27,14 @@ struct EvalResult {
   double rte_percent = 0.0;    ///< mean translational error over segments, % of their length
   double rre_deg_per_m = 0.0;  ///< mean rotational error over segments, deg per metre
   double rpe_translation_rmse = 0.0, rpe_rotation_rmse_deg = 0.0;  ///< frame to frame
+  /// Dead reckoning from a known start: the estimate placed on the ground truth by its first
+  /// pose alone, as a vehicle sees it, without the hindsight fit of the ATE. A tilt picked up
+  /// early moves every later pose but hardly any relative pose, and the ATE fit rotates it
+  /// away; here it shows as height running off with the distance.
+  double end_error = 0.0;               ///< m, position error at the last pose
+  double height_error_end = 0.0;        ///< m, estimated minus true height at the last pose
+  double height_error_max = 0.0;        ///< m, largest |height error| over the poses
+  double tilt_end_deg = 0.0;            ///< angle between the estimated and true up axes at the end
   std::vector<double> segment_lengths;  ///< the lengths the segment errors used
   std::vector<FrameError> frames;
 };

@@ -226,6 +226,9 @@ TEST(TrajectoryEval, IdenticalAndRigidlyMovedEstimatesHaveNoError) {
   EXPECT_LT(r.ate_rmse, 1e-9);
   EXPECT_LT(r.rte_percent, 1e-7);
   EXPECT_LT(r.rpe_translation_rmse, 1e-9);
+  EXPECT_LT(r.end_error, 1e-9);
+  EXPECT_LT(r.height_error_max, 1e-9);
+  EXPECT_LT(r.tilt_end_deg, 1e-5);
 }
 
 TEST(TrajectoryEval, ScaleErrorShowsAsRelativeTranslationError) {
@@ -235,6 +238,24 @@ TEST(TrajectoryEval, ScaleErrorShowsAsRelativeTranslationError) {
   EXPECT_NEAR(r.rte_percent, 1.0, 1e-6);
   EXPECT_NEAR(r.rpe_translation_rmse, 0.005, 1e-9);
   EXPECT_GT(r.ate_rmse, 0.1);
+}
+
+TEST(TrajectoryEval, ATiltPickedUpAtTheStartShowsInTheHeightNotInTheAte) {
+  // One bad pitch in the first step, every later step right: the odometry's typical height
+  // failure. The ATE fit rotates it away; dead reckoning from the first pose does not.
+  const auto gt = line(300, 0.5);
+  auto est = gt;
+  const double tilt = 0.5 * 3.14159265358979323846 / 180.0;
+  const Eigen::Isometry3d nose_up(Eigen::AngleAxisd(-tilt, Eigen::Vector3d::UnitY()));
+  for (std::size_t i = 1; i < est.size(); ++i) est[i].pose = nose_up * gt[i].pose;
+  const EvalResult r = evaluate(gt, est);
+  const double length = 0.5 * 299;
+  EXPECT_LT(r.ate_rmse, 1e-9);
+  EXPECT_NEAR(r.rpe_rotation_rmse_deg, 0.5 / std::sqrt(299.0), 1e-6);  // one frame in 299
+  EXPECT_NEAR(r.height_error_end, length * std::sin(tilt), 1e-9);
+  EXPECT_NEAR(r.height_error_max, length * std::sin(tilt), 1e-9);
+  EXPECT_NEAR(r.tilt_end_deg, 0.5, 1e-6);
+  EXPECT_NEAR(r.end_error, 2.0 * length * std::sin(tilt / 2.0), 1e-9);
 }
 
 TEST(TrajectoryEval, InterpolatesGroundTruthAndSkipsPosesOutsideIt) {
