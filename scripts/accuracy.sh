@@ -19,11 +19,12 @@ import json, sys
 e = json.load(open(sys.argv[4])); s = json.load(open(sys.argv[5]))
 print(f"| {sys.argv[1]} | {sys.argv[2]} | {sys.argv[3]} | {e['path_length_m']:.0f} | {e['ate_rmse_m']:.3f} | "
       f"{e['rte_percent']:.2f} | {e['rre_deg_per_m']:.4f} | {e['rpe_translation_rmse_m']:.4f} | "
+      f"{e['start_aligned']['height_error_end_m']:.2f} | {e['start_aligned']['tilt_end_deg']:.2f} | "
       f"{s['iterations_mean']:.1f} | {s['odometry_ms_p50']:.0f} |")
 PY
 }
-echo "| scene | movers | mode | path m | ATE RMSE m | RTE % | RRE deg/m | RPE m/frame | iterations | ms/scan p50 |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+echo "| scene | movers | mode | path m | ATE RMSE m | RTE % | RRE deg/m | RPE m/frame | height error at end m | tilt at end deg | iterations | ms/scan p50 |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
 for scene in street campus corridor loop; do
   for mode in consensus naive; do row "$scene" 4 "$mode"; done
 done
