@@ -1,6 +1,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -55,6 +56,12 @@ void register_sim(CLI::App& app, SimArgs& a) {
          "Scale of the body's pitch, roll and bounce (default: the scene's own, 1 outdoors "
          "and 0.3 indoors; 0: a rigid platform on smooth ground)")
       ->check(CLI::Range(0.0, 10.0));
+  cmd->add_option("--mount", a.mount,
+                  "ROLL PITCH YAW: how the sensor sits on the vehicle, degrees (applied yaw, "
+                  "then pitch, then roll, in the vehicle frame: x forward, z up; e.g. 0 10 0 "
+                  "tilts it 10 deg nose down, 90 0 0 lays it on its side); the ground truth is "
+                  "the sensor's pose (default: level, x forward)")
+      ->expected(3);
   cmd->add_flag("--dual", a.dual, "Dual-return mode (last and strongest)");
   cmd->add_option("--rpm", a.rpm, "Rotation speed, 300..1200 in steps of 60 (VLP-16 manual)")
       ->capture_default_str();
@@ -93,6 +100,12 @@ int run_sim(const SimArgs& a) {
         "after 1970");
     return core::kExitUsage;
   }
+  if (a.mount.size() == 3 && !std::all_of(a.mount.begin(), a.mount.end(), [](double d) {
+        return std::isfinite(d) && std::abs(d) <= 360.0;
+      })) {
+    spdlog::error("--mount: expected ROLL PITCH YAW in degrees, each within -360..360");
+    return core::kExitUsage;
+  }
   if (!a.stop.empty() && !(a.stop.size() == 2 && a.stop[0] >= 0 && a.stop[1] > 0)) {
     spdlog::error("--stop: expected AT SECONDS with AT >= 0 and SECONDS > 0");
     return core::kExitUsage;
@@ -100,6 +113,13 @@ int run_sim(const SimArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed, a.speed);
   if (a.body_motion >= 0.0) scene.motion_scale = a.body_motion;
+  if (a.mount.size() == 3) {
+    constexpr double kDeg = 3.14159265358979323846 / 180.0;
+    scene.mount = (Eigen::AngleAxisd(a.mount[2] * kDeg, Eigen::Vector3d::UnitZ()) *
+                   Eigen::AngleAxisd(a.mount[1] * kDeg, Eigen::Vector3d::UnitY()) *
+                   Eigen::AngleAxisd(a.mount[0] * kDeg, Eigen::Vector3d::UnitX()))
+                      .toRotationMatrix();
+  }
   if (a.stop.size() == 2) {
     scene.stop_at_s = a.stop[0];
     scene.stop_s = a.stop[1];

@@ -298,10 +298,11 @@ Eigen::Isometry3d Scene::sensor_pose(double t_true) const {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(c.x() - lat * std::sin(c.z()), c.y() + lat * std::cos(c.z()),
                                     sensor_height + bounce);
-  T.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
+  const Eigen::Matrix3d body = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                                   .toRotationMatrix();
+  T.linear() = body * mount;
   return T;
 }
 

@@ -343,6 +343,22 @@ TEST(SimScene, WithoutBodyMotionTheSensorStaysLevelAtItsHeight) {
   }
 }
 
+// A mount turns the sensor on the vehicle and nothing else: tilted 10 deg nose down, its x axis
+// points 10 deg below the horizon all along a drive without body motion, from the same place.
+TEST(SimScene, AMountTurnsTheSensorOnTheVehicle) {
+  Scene level = build_scene(SceneKind::kStreet, 10.0, 0, 2);
+  level.motion_scale = 0.0;
+  Scene tilted = level;
+  const double tilt = 10.0 * 3.14159265358979323846 / 180.0;
+  tilted.mount = Eigen::AngleAxisd(tilt, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  for (double t = 0.0; t < 10.0; t += 0.37) {
+    const Eigen::Isometry3d a = level.sensor_pose(t), b = tilted.sensor_pose(t);
+    EXPECT_LT((a.translation() - b.translation()).norm(), 1e-12) << t;
+    EXPECT_NEAR((b.linear() * Eigen::Vector3d::UnitX()).z(), -std::sin(tilt), 1e-12) << t;
+    EXPECT_TRUE((a.linear().transpose() * b.linear()).isApprox(tilted.mount, 1e-12)) << t;
+  }
+}
+
 TEST(SimScene, YawRateIsContinuousThroughCorners) {
   // The loop's corners have a 20 m radius: 20 deg/s at 7 m/s, entered over a few metres.
   const Scene loop = build_scene(SceneKind::kLoop, 60.0, 0, 1);

@@ -64,6 +64,7 @@ struct SimArgs {
   std::uint64_t world_seed = 0;  ///< 0: the same as seed
   double speed = 0.0;            ///< m/s; 0: the scene's own
   double body_motion = -1.0;     ///< pitch/roll/bounce scale; negative: the scene's own
+  std::vector<double> mount;     ///< roll, pitch, yaw of the sensor on the vehicle, degrees
   int movers = 4;
   double drop_rate = 0.0;
   std::vector<double> outage;      // start and length, s

@@ -55,6 +55,9 @@ struct Scene {
   double sensor_height = 1.9;                                  ///< m above ground
   double lateral_amplitude = 1.0, lateral_wavelength = 140.0;  ///< lane changes
   double motion_scale = 1.0;  ///< scales pitch/roll/bounce (smaller indoors)
+  /// How the sensor sits on the vehicle: T_vehicle_sensor's rotation (identity: level, x
+  /// forward). The sensor stays at sensor_height; the ground truth is the sensor's pose.
+  Eigen::Matrix3d mount = Eigen::Matrix3d::Identity();
   /// A stop: from stop_at_s the vehicle brakes to a standstill over stop_ramp_s, stands for
   /// stop_s and pulls away again over stop_ramp_s (stop_s = 0: no stop).
   double stop_at_s = 0.0, stop_s = 0.0, stop_ramp_s = 3.0;
