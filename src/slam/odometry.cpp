@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <numbers>
 #include <optional>
 
 #include "cndt/core/mix64.hpp"
@@ -30,6 +31,34 @@ double translation_conditioning(const ndt::Matrix6d& hessian) {
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(h, Eigen::EigenvaluesOnly);
   const double largest = es.eigenvalues()(2);
   return largest > 0.0 ? es.eigenvalues()(0) / largest : 0.0;
+}
+
+// The normal of the level surfaces (ground, floor, ceiling) in the frame of `grid`'s points:
+// the principal direction of the normals of its planar voxels within 45 deg of z, weighted by
+// their points; z when there are too few. The start search lays its grid of offsets across
+// it, so that a sensor mounted tilted on its vehicle searches along the ground, not into it.
+Eigen::Vector3d level_normal(const ndt::VoxelGrid& grid) {
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  double weight = 0.0;
+  for (const ndt::Voxel& v : grid.voxels()) {
+    if (v.count < 10) continue;
+    const double n = v.count;
+    const Eigen::Vector3d m = v.sum / n;
+    const Eigen::Matrix3d cov = v.sum_outer / n - m * m.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(0.5 * (cov + cov.transpose()));
+    const Eigen::Vector3d ev = es.eigenvalues();
+    // Thin across, spread both ways along: a piece of a plane, not a line or a blob.
+    if (!(ev(0) < 0.05 * ev(1) && ev(1) > 0.1 * ev(2))) continue;
+    const Eigen::Vector3d normal = es.eigenvectors().col(0);
+    if (std::abs(normal.z()) < std::sqrt(0.5)) continue;  // a wall of a level sensor's scene
+    scatter += n * normal * normal.transpose();
+    weight += n;
+  }
+  if (weight < 200.0) return Eigen::Vector3d::UnitZ();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(scatter);
+  Eigen::Vector3d up = es.eigenvectors().col(2);
+  return up.z() < 0.0 ? Eigen::Vector3d(-up) : up;
 }
 
 }  // namespace
@@ -87,9 +116,17 @@ core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::
   int n = static_cast<int>(std::floor(options_.start_search_radius / step));
   int m = std::max(n, static_cast<int>(std::floor(along_radius / step)));
   const int limit = static_cast<int>(std::floor(grow_to / step));
-  Eigen::Vector2d along(heading.x(), heading.y());
-  along = along.norm() > 1e-9 ? along.normalized() : Eigen::Vector2d::UnitX();
-  const Eigen::Vector2d across(-along.y(), along.x());
+  // In the plane of the level surfaces (estimated once, from the first reference): for a level
+  // sensor the x-y plane, kept exactly when the two are within 5 deg.
+  if (!have_level_) {
+    level_ = level_normal(g);
+    if (level_.z() > std::cos(5.0 * std::numbers::pi / 180.0)) level_ = Eigen::Vector3d::UnitZ();
+    have_level_ = true;
+  }
+  Eigen::Vector3d along = heading - heading.dot(level_) * level_;
+  if (along.norm() <= 1e-9) along = Eigen::Vector3d::UnitX() - level_.x() * level_;
+  along.normalize();
+  const Eigen::Vector3d across = level_.cross(along);
   core::Pose6 best = x0;
   int best_i = 0, best_j = 0;
   double best_score =
@@ -101,7 +138,7 @@ core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::
       for (int j = -n; j <= n; ++j) {
         if (std::abs(i) <= m_in && std::abs(j) <= n_in) continue;
         core::Pose6 x = x0;
-        x.head<2>() += step * (i * along + j * across);
+        x.head<3>() += step * (i * along + j * across);
         const double s =
             ndt::ndt_score(g, test_, x, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
                 .score;

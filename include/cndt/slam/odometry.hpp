@@ -230,7 +230,8 @@ class ConsensusOdometry {
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
   void jitter(core::Pose6& x);  // guess_jitter_seed: moves x by at most 0.5e-9 per coordinate
-  // The best of a grid of horizontal offsets from x0 on the coarsest grid: along `heading` up to
+  // The best of a grid of offsets from x0 on the coarsest grid, in the plane of the level
+  // surfaces (level_; the x-y plane for a level sensor): along `heading` up to
   // max(along_radius, start_search_radius), across it start_search_radius; grown one step
   // outwards at a time while the best lies on its edge, up to grow_to (m) from x0.
   core::Pose6 search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
@@ -243,6 +244,8 @@ class ConsensusOdometry {
   double consensus_at(const core::Pose6& x, std::vector<double>& cv);
 
   OdometryOptions options_;
+  Eigen::Vector3d level_ = Eigen::Vector3d::UnitZ();  // normal of the ground, odometry frame
+  bool have_level_ = false;
   ndt::VoxelGrid grid_;
   std::vector<ndt::VoxelGrid> pyramid_;  // coarse grids of the reference
   bool have_motion_prior_ = false;
