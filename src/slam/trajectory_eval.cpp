@@ -74,7 +74,9 @@ EvalResult evaluate(const std::vector<TimedPose>& ground_truth,
   const Eigen::Isometry3d last = start * est.back();
   r.end_error = (last.translation() - gt.back().translation()).norm();
   r.height_error_end = last.translation().z() - gt.back().translation().z();
-  const double up_cos = std::clamp(last.linear().col(2).dot(gt.back().linear().col(2)), -1.0, 1.0);
+  // The world's up as each sees it from the sensor (the rotations' third rows): a turn about
+  // the vertical leaves it, so this is roll and pitch alone, whatever the sensor's mounting.
+  const double up_cos = std::clamp(last.linear().row(2).dot(gt.back().linear().row(2)), -1.0, 1.0);
   r.tilt_end_deg = std::acos(up_cos) * kRadToDeg;
   // Per-frame relative pose error.
   double st = 0.0, sr = 0.0;

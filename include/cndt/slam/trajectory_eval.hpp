@@ -31,10 +31,12 @@ struct EvalResult {
   /// pose alone, as a vehicle sees it, without the hindsight fit of the ATE. A tilt picked up
   /// early moves every later pose but hardly any relative pose, and the ATE fit rotates it
   /// away; here it shows as height running off with the distance.
-  double end_error = 0.0;               ///< m, position error at the last pose
-  double height_error_end = 0.0;        ///< m, estimated minus true height at the last pose
-  double height_error_max = 0.0;        ///< m, largest |height error| over the poses
-  double tilt_end_deg = 0.0;            ///< angle between the estimated and true up axes at the end
+  double end_error = 0.0;         ///< m, position error at the last pose
+  double height_error_end = 0.0;  ///< m, estimated minus true height at the last pose
+  double height_error_max = 0.0;  ///< m, largest |height error| over the poses
+  /// Roll and pitch error at the last pose: the angle between the world's up as the estimated
+  /// and the true sensor orientation see it (a heading error leaves it at 0).
+  double tilt_end_deg = 0.0;
   std::vector<double> segment_lengths;  ///< the lengths the segment errors used
   std::vector<FrameError> frames;
 };

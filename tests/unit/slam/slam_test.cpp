@@ -256,6 +256,16 @@ TEST(TrajectoryEval, ATiltPickedUpAtTheStartShowsInTheHeightNotInTheAte) {
   EXPECT_NEAR(r.height_error_max, length * std::sin(tilt), 1e-9);
   EXPECT_NEAR(r.tilt_end_deg, 0.5, 1e-6);
   EXPECT_NEAR(r.end_error, 2.0 * length * std::sin(tilt / 2.0), 1e-9);
+  // A heading error of a sensor mounted tilted is no tilt: the world's up stays where it was.
+  auto tilted_mount = gt;
+  const Eigen::Matrix3d mount(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitY()));
+  for (auto& p : tilted_mount) p.pose.linear() = p.pose.linear() * mount;
+  auto turned = tilted_mount;
+  const Eigen::Isometry3d yaw(Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()));
+  for (std::size_t i = 1; i < turned.size(); ++i) turned[i].pose = yaw * tilted_mount[i].pose;
+  const EvalResult t = evaluate(tilted_mount, turned);
+  EXPECT_LT(t.tilt_end_deg, 1e-5);
+  EXPECT_LT(t.height_error_max, 1e-9);
 }
 
 TEST(TrajectoryEval, InterpolatesGroundTruthAndSkipsPosesOutsideIt) {
