@@ -54,7 +54,7 @@ void register_eval(CLI::App& app, EvalArgs& a) {
       "JSON: ATE RMSE after an SE(3) alignment, KITTI-style relative translational (%) "
       "and rotational (deg/m) errors over path segments, per-frame RPE, and the errors of "
       "dead reckoning from the first pose (start_aligned: position and height error at the "
-      "end, largest height error, tilt of the up axis at the end), which the ATE's fit hides");
+      "end, largest height error, roll and pitch error at the end), which the ATE's fit hides");
   cmd->add_option("--gt", a.gt, "Ground-truth TUM file")->required();
   cmd->add_option("--est", a.est, "Estimated TUM file")->required();
 }
