@@ -62,6 +62,10 @@ void register_sim(CLI::App& app, SimArgs& a) {
                   "tilts it 10 deg nose down, 90 0 0 lays it on its side); the ground truth is "
                   "the sensor's pose (default: level, x forward)")
       ->expected(3);
+  cmd->add_option("--height", a.height,
+                  "Sensor height above the ground, m (default: the scene's own, 1.9 outdoors "
+                  "and 0.5 in the corridor)")
+      ->check(CLI::Range(0.2, 2.7));
   cmd->add_flag("--dual", a.dual, "Dual-return mode (last and strongest)");
   cmd->add_option("--rpm", a.rpm, "Rotation speed, 300..1200 in steps of 60 (VLP-16 manual)")
       ->capture_default_str();
@@ -113,6 +117,7 @@ int run_sim(const SimArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   sim::Scene scene = sim::build_scene(*kind, a.duration_s, a.movers, a.seed, a.world_seed, a.speed);
   if (a.body_motion >= 0.0) scene.motion_scale = a.body_motion;
+  if (a.height > 0.0) scene.sensor_height = a.height;
   if (a.mount.size() == 3) {
     constexpr double kDeg = 3.14159265358979323846 / 180.0;
     scene.mount = (Eigen::AngleAxisd(a.mount[2] * kDeg, Eigen::Vector3d::UnitZ()) *

@@ -65,6 +65,7 @@ struct SimArgs {
   double speed = 0.0;            ///< m/s; 0: the scene's own
   double body_motion = -1.0;     ///< pitch/roll/bounce scale; negative: the scene's own
   std::vector<double> mount;     ///< roll, pitch, yaw of the sensor on the vehicle, degrees
+  double height = 0.0;           ///< sensor height above the ground, m; 0: the scene's own
   int movers = 4;
   double drop_rate = 0.0;
   std::vector<double> outage;      // start and length, s
