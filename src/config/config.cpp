@@ -189,6 +189,13 @@ const std::vector<Field>& fields() {
        "leaves nearly free (a bare street or corridor) the prediction decides instead of noise "
        "(0 = off; docs/odometry.md).",
        "", 0, 1},
+      {"odometry", "surface_patches", CNDT_REF(odometry.surface_patches),
+       "A reference voxel whose neighbourhood holds a plane is matched as a piece of that plane "
+       "(its own spread along the normal, along the plane at least the voxel size squared) "
+       "instead of the "
+       "ring arcs a scan left in it, which move with the sensor and pull scans to line up their "
+       "rings: less tilt and height error on most drives, but a campus drive at 1200 rpm was "
+       "lost with it (false = the paper's voxel Gaussians; docs/odometry.md)."},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
        "stays at the stamp). Halves RTE and RPE on 30 s simulated drives but drifts more on a "

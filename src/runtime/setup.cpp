@@ -94,6 +94,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.max_acceleration = od.max_acceleration_mps2;
   o.max_speed = od.max_speed_mps;
   o.prior_weight = od.prior_weight;
+  o.surface_patches = od.surface_patches;
   o.deskew_to_mid_scan = od.deskew_to_mid_scan;
   o.guess_jitter_seed = static_cast<std::uint64_t>(od.guess_jitter_seed);
   o.max_scan_points = s.max_points;

@@ -3,7 +3,8 @@
 namespace cndt::slam {
 
 NdtMap::NdtMap(const MapOptions& o)
-    : options_(o), grid_({o.voxel_size, o.capacity, o.min_points, o.eigen_floor, false, false}) {}
+    : options_(o),
+      grid_({o.voxel_size, o.capacity, o.min_points, o.eigen_floor, false, false, false}) {}
 
 std::size_t NdtMap::evict_outside(const Eigen::Vector3d& position) noexcept {
   if (!(options_.window_radius > 0.0)) return 0;

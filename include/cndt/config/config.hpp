@@ -50,6 +50,7 @@ struct Config {
     double max_acceleration_mps2 = 10.0;
     double max_speed_mps = 40.0;
     double prior_weight = 0.003;
+    bool surface_patches = false;
     bool deskew_to_mid_scan = false;
     std::int64_t guess_jitter_seed = 0;
   } odometry;

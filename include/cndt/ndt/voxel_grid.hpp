@@ -70,6 +70,12 @@ struct VoxelGridOptions {
   /// Voxels whose points lie on a nearly horizontal line (a single ring arc) get no Gaussian
   /// when set: such arcs move with the sensor and pull scan matching towards zero motion.
   bool drop_horizontal_lines = false;
+  /// Surface patches: a voxel whose neighbourhood (itself and its 26 neighbours) holds a plane
+  /// gets that plane's orientation for its Gaussian: its own spread along the plane's normal,
+  /// and along the plane at least L^2 (reaching over its neighbours). What a scan leaves
+  /// in one voxel of a surface is where its rings crossed it (an arc, or stripes), which moves
+  /// with the sensor; matched as such, scans align their rings instead of their surfaces.
+  bool surface_patches = false;
   /// The voxel array resident from the start (core/resident.hpp): for grids filled on a
   /// real-time thread. Otherwise reserved only, and mapped in as it fills.
   bool resident = true;
@@ -169,6 +175,8 @@ class VoxelGrid {
   [[nodiscard]] Eigen::Vector3d corner(const VoxelKey& k) const noexcept;
   void mark_dirty(Voxel& v, std::size_t index) noexcept;
   void derive(std::size_t index) noexcept;  // gaussians_[index] from voxels_[index]'s sums
+  // surface_patches: whether the voxels around `key` (with it) hold a plane, and its normal.
+  bool neighbourhood_plane(const VoxelKey& key, Eigen::Vector3d& normal) const noexcept;
   // Drops the voxels for which pred holds, with their Gaussians, keeping the order and the
   // capacity; the table is left to rebuild.
   template <class Pred>

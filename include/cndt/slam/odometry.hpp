@@ -86,6 +86,10 @@ struct OdometryOptions {
   std::size_t max_map_voxels = 400'000;
   std::size_t min_points = 200;  ///< fewer matched points: the scan is not matched
   bool drop_ring_arcs = false;   ///< reference voxels holding a single ring arc get no Gaussian
+  /// Reference voxels in a planar neighbourhood are matched as pieces of the plane
+  /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"). Off: a
+  /// campus drive at 1200 rpm was lost with it.
+  bool surface_patches = false;
   /// Coarser grids of the same reference the scan is matched on first, coarsest first. Their
   /// Gaussians are blurred (eigenvalues floored at pyramid_eigen_floor x the largest) and voxels
   /// holding a single ring arc get none, so they pull from much farther than the fine grid,

@@ -748,5 +748,47 @@ TEST(LocalizationConsensus, DegenerateGeometryGivesZero) {
   EXPECT_EQ(localization_consensus(line, cv), 0.0);
 }
 
+// A floor as a sensor 1.9 m above it samples it: points on rings of fixed radius, which move
+// with the sensor. The reference holds ten such scans taken 1 m apart (a local map), the scan
+// is taken 0.3 m past the newest. As plain voxel Gaussians the rings are thin arcs, and the
+// scan scores far better with its rings moved back onto the newest scan's (as if the sensor
+// had stood still) than at its true pose; as surface patches both score alike: the floor then
+// holds height and tilt and nothing along it.
+TEST(VoxelGrid, SurfacePatchesTakeTheRingsOutOfAFloor) {
+  auto rings = [](double x0, std::vector<Eigen::Vector3d>& out) {
+    for (double elevation_deg = -15.0; elevation_deg <= -3.0; elevation_deg += 2.0) {
+      const double r = 1.9 / std::tan(-elevation_deg * 3.14159265358979323846 / 180.0);
+      for (int k = 0; k < 1800; ++k) {
+        const double a = 2.0 * 3.14159265358979323846 * k / 1800.0;
+        out.emplace_back(x0 + r * std::cos(a), r * std::sin(a), 0.0);
+      }
+    }
+  };
+  std::vector<Eigen::Vector3d> reference, scan;
+  for (int i = 0; i < 10; ++i) rings(-1.0 * i, reference);
+  rings(0.3, scan);  // in the reference's frame
+  for (const bool patches : {false, true}) {
+    VoxelGrid grid({0.5, 100'000, 5, 0.001, false, patches});
+    for (const auto& p : reference) grid.add(p);
+    grid.finalize();
+    Pose6 truth = Pose6::Zero(), stood_still = Pose6::Zero();
+    stood_still(0) = -0.3;  // the scan's rings moved back onto the newest scan's
+    const double at_truth = ndt_score(grid, scan, truth, false, nullptr, Neighbours::kSeven).score;
+    const double standing =
+        ndt_score(grid, scan, stood_still, false, nullptr, Neighbours::kSeven).score;
+    Pose6 up = truth;
+    up(2) = 0.05;
+    const double raised = ndt_score(grid, scan, up, false, nullptr, Neighbours::kSeven).score;
+    std::printf("%s: score at the true pose %.1f, standing still %.1f, 5 cm up %.1f\n",
+                patches ? "surface patches" : "voxel Gaussians", at_truth, standing, raised);
+    if (patches) {
+      EXPECT_NEAR(standing / at_truth, 1.0, 0.1);
+      EXPECT_GT(raised, 0.5 * at_truth);  // the floor holds the height (scores are negative)
+    } else {
+      EXPECT_LT(standing, 1.5 * at_truth);  // the pull this guards against
+    }
+  }
+}
+
 }  // namespace
 }  // namespace cndt::ndt
