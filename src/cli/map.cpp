@@ -45,11 +45,7 @@ std::vector<VoxelPoint> voxel_points(const slam::NdtMap& map) {
     const ndt::Voxel& v = voxels[i];
     if (!v.has_gaussian) continue;
     const Eigen::Vector3d mean = map.grid().gaussians()[i].mean_vector();
-    const double n = v.count;
-    const Eigen::Vector3d m = v.sum / n;
-    const Eigen::Matrix3d cov = v.sum_outer / n - m * m.transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(0.5 * (cov + cov.transpose()),
-                                                            Eigen::EigenvaluesOnly);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(v.covariance(), Eigen::EigenvaluesOnly);
     const double largest = std::max(es.eigenvalues().maxCoeff(), 0.0);
     out.push_back({static_cast<float>(mean.x()), static_cast<float>(mean.y()),
                    static_cast<float>(mean.z()), static_cast<float>(2.0 * std::sqrt(largest)),

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "cndt/cli/commands.hpp"
+#include "cndt/output/pose_message.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 
 namespace cndt::cli {
@@ -120,10 +121,8 @@ int run_sim(const SimArgs& a) {
   if (a.height > 0.0) scene.sensor_height = a.height;
   if (a.mount.size() == 3) {
     constexpr double kDeg = 3.14159265358979323846 / 180.0;
-    scene.mount = (Eigen::AngleAxisd(a.mount[2] * kDeg, Eigen::Vector3d::UnitZ()) *
-                   Eigen::AngleAxisd(a.mount[1] * kDeg, Eigen::Vector3d::UnitY()) *
-                   Eigen::AngleAxisd(a.mount[0] * kDeg, Eigen::Vector3d::UnitX()))
-                      .toRotationMatrix();
+    scene.mount =
+        output::from_roll_pitch_yaw(a.mount[0] * kDeg, a.mount[1] * kDeg, a.mount[2] * kDeg);
   }
   if (a.stop.size() == 2) {
     scene.stop_at_s = a.stop[0];

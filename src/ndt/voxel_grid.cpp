@@ -203,22 +203,15 @@ bool VoxelGrid::neighbourhood_plane(const VoxelKey& key, Eigen::Vector3d& normal
   double n = 0.0;
   Eigen::Vector3d s1 = Eigen::Vector3d::Zero();
   Eigen::Matrix3d s2 = Eigen::Matrix3d::Zero();
-  for (int dx = -1; dx <= 1; ++dx) {
-    for (int dy = -1; dy <= 1; ++dy) {
-      for (int dz = -1; dz <= 1; ++dz) {
-        const VoxelKey k{key.x + dx, key.y + dy, key.z + dz};
-        const std::int64_t j = index_of(k);
-        if (j < 0) continue;
-        const Voxel& u = voxels_[static_cast<std::size_t>(j)];
-        if (u.count == 0) continue;
-        const double nj = u.count;
-        const Eigen::Vector3d d = corner(k) - c;
-        n += nj;
-        s1 += u.sum + nj * d;
-        s2 += u.sum_outer + u.sum * d.transpose() + d * u.sum.transpose() + nj * d * d.transpose();
-      }
-    }
-  }
+  for_each_around(key, [&](std::size_t j) {
+    const Voxel& u = voxels_[j];
+    if (u.count == 0) return;
+    const double nj = u.count;
+    const Eigen::Vector3d d = corner(u.key) - c;
+    n += nj;
+    s1 += u.sum + nj * d;
+    s2 += u.sum_outer + u.sum * d.transpose() + d * u.sum.transpose() + nj * d * d.transpose();
+  });
   const Eigen::Vector3d mu = s1 / n;
   Eigen::Matrix3d cov = s2 / n - mu * mu.transpose();
   cov = 0.5 * (cov + cov.transpose());
@@ -241,47 +234,26 @@ void VoxelGrid::derive(std::size_t index) noexcept {
   if (v.count < options_.min_points) return;
   const double n = v.count;
   const Eigen::Vector3d m = v.sum / n;
-  const Eigen::Vector3d mean = corner(v.key) + m;             // eq 4, mean
-  Eigen::Matrix3d cov = v.sum_outer / n - m * m.transpose();  // eq 4, covariance
-  cov = 0.5 * (cov + cov.transpose());
+  const Eigen::Vector3d mean = corner(v.key) + m;  // eq 4, mean
+  const Eigen::Matrix3d cov = v.covariance();      // eq 4, covariance
+  Eigen::Matrix3d A;
   Eigen::Vector3d normal;
   if (options_.surface_patches && neighbourhood_plane(v.key, normal)) {
-    // Along the plane the voxel's own spread, at least L^2: a patch reaching over its
-    // neighbours, so that a plane's patches overlap and score evenly along it (at L^2 / 12, a
-    // filled voxel's, the score still rippled with the voxel spacing and kept a third of the
-    // rings' pull). Along the normal its own, at least eigen_floor of the largest (eq 4's clamp).
-    const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - normal * normal.transpose();
-    Eigen::Matrix3d in_plane = across * cov * across;
-    in_plane = 0.5 * (in_plane + in_plane.transpose());
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> ep;
-    ep.computeDirect(in_plane);  // eigenvalue 0 along the normal, then the two in the plane
-    const double reach = options_.voxel_size * options_.voxel_size;
-    const double e1 = std::max(ep.eigenvalues()(1), reach);
-    const double e2 = std::max(ep.eigenvalues()(2), reach);
-    const double en = std::max(normal.dot(cov * normal), e2 * options_.eigen_floor);
-    const Eigen::Vector3d u1 = ep.eigenvectors().col(1), u2 = ep.eigenvectors().col(2);
-    Eigen::Matrix3d A;
-    A = normal * normal.transpose() / en + u1 * u1.transpose() / e1 + u2 * u2.transpose() / e2;
-    v.has_gaussian = true;
-    g.valid = 1;
-    for (int i = 0; i < 3; ++i) g.mean[i] = mean(i);
-    const double upper[6] = {A(0, 0), A(0, 1), A(0, 2), A(1, 1), A(1, 2), A(2, 2)};
-    for (int i = 0; i < 6; ++i) g.inv_cov[i] = static_cast<float>(upper[i]);
-    return;
+    A = surface_patch(cov, normal);
+  } else {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(cov);  // closed form for 3 x 3
+    Eigen::Vector3d ev = es.eigenvalues();
+    if (options_.drop_horizontal_lines && ev(1) < 0.05 * ev(2) &&
+        std::abs(es.eigenvectors().col(2).z()) < 0.5) {
+      return;  // a ring arc: one dominant, nearly horizontal direction
+    }
+    const double floor = std::max(ev.maxCoeff(), 1e-12) * options_.eigen_floor;
+    ev = ev.cwiseMax(floor);  // planes and lines would otherwise be singular
+    // Assigned rather than initialised: Eigen evaluates the two forms of this product in a
+    // different order, and the inverse covariance moves in its last bits.
+    A = es.eigenvectors() * ev.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
   }
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-  es.computeDirect(cov);  // closed form for 3 x 3
-  Eigen::Vector3d ev = es.eigenvalues();
-  if (options_.drop_horizontal_lines && ev(1) < 0.05 * ev(2) &&
-      std::abs(es.eigenvectors().col(2).z()) < 0.5) {
-    return;  // a ring arc: one dominant, nearly horizontal direction
-  }
-  const double floor = std::max(ev.maxCoeff(), 1e-12) * options_.eigen_floor;
-  ev = ev.cwiseMax(floor);  // planes and lines would otherwise be singular
-  // Assigned rather than initialised: Eigen evaluates the two forms of this product in a
-  // different order, and the inverse covariance moves in its last bits.
-  Eigen::Matrix3d A;
-  A = es.eigenvectors() * ev.cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
   v.has_gaussian = true;
   g.valid = 1;
   for (int i = 0; i < 3; ++i) g.mean[i] = mean(i);
@@ -289,21 +261,33 @@ void VoxelGrid::derive(std::size_t index) noexcept {
   for (int i = 0; i < 6; ++i) g.inv_cov[i] = static_cast<float>(upper[i]);
 }
 
+Eigen::Matrix3d VoxelGrid::surface_patch(const Eigen::Matrix3d& cov,
+                                         const Eigen::Vector3d& normal) const noexcept {
+  // Along the plane the voxel's own spread, at least L^2: a patch reaching over its
+  // neighbours, so that a plane's patches overlap and score evenly along it (at L^2 / 12, a
+  // filled voxel's, the score still rippled with the voxel spacing and kept a third of the
+  // rings' pull). Along the normal its own, at least eigen_floor of the largest (eq 4's clamp).
+  const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - normal * normal.transpose();
+  Eigen::Matrix3d in_plane = across * cov * across;
+  in_plane = 0.5 * (in_plane + in_plane.transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> ep;
+  ep.computeDirect(in_plane);  // eigenvalue 0 along the normal, then the two in the plane
+  const double reach = options_.voxel_size * options_.voxel_size;
+  const double e1 = std::max(ep.eigenvalues()(1), reach);
+  const double e2 = std::max(ep.eigenvalues()(2), reach);
+  const double en = std::max(normal.dot(cov * normal), e2 * options_.eigen_floor);
+  const Eigen::Vector3d u1 = ep.eigenvectors().col(1), u2 = ep.eigenvectors().col(2);
+  Eigen::Matrix3d A;
+  A = normal * normal.transpose() / en + u1 * u1.transpose() / e1 + u2 * u2.transpose() / e2;
+  return A;
+}
+
 void VoxelGrid::finalize() noexcept {
   if (options_.surface_patches) {
     // A voxel's Gaussian reads its neighbours' sums: theirs change with it.
     const std::size_t changed = dirty_.size();
     for (std::size_t d = 0; d < changed; ++d) {
-      const VoxelKey k = voxels_[dirty_[d]].key;
-      for (int dx = -1; dx <= 1; ++dx) {
-        for (int dy = -1; dy <= 1; ++dy) {
-          for (int dz = -1; dz <= 1; ++dz) {
-            const std::int64_t j = index_of(VoxelKey{k.x + dx, k.y + dy, k.z + dz});
-            if (j >= 0)
-              mark_dirty(voxels_[static_cast<std::size_t>(j)], static_cast<std::size_t>(j));
-          }
-        }
-      }
+      for_each_around(voxels_[dirty_[d]].key, [&](std::size_t j) { mark_dirty(voxels_[j], j); });
     }
   }
   for (std::uint32_t i : dirty_) {

@@ -43,10 +43,8 @@ Eigen::Vector3d level_normal(const ndt::VoxelGrid& grid) {
   for (const ndt::Voxel& v : grid.voxels()) {
     if (v.count < 10) continue;
     const double n = v.count;
-    const Eigen::Vector3d m = v.sum / n;
-    const Eigen::Matrix3d cov = v.sum_outer / n - m * m.transpose();
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(0.5 * (cov + cov.transpose()));
+    es.computeDirect(v.covariance());
     const Eigen::Vector3d ev = es.eigenvalues();
     // Thin across, spread both ways along: a piece of a plane, not a line or a blob.
     if (!(ev(0) < 0.05 * ev(1) && ev(1) > 0.1 * ev(2))) continue;

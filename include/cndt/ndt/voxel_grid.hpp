@@ -32,6 +32,13 @@ struct Voxel {
   // Running sums, corner-relative: m_j = sum (p_i - c), S_j = sum (p_i - c)(p_i - c)^T.
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
+
+  /// Eq 4's covariance of the points (count > 0), symmetrised.
+  [[nodiscard]] Eigen::Matrix3d covariance() const noexcept {
+    const Eigen::Vector3d m = sum / static_cast<double>(count);
+    const Eigen::Matrix3d cov = sum_outer / static_cast<double>(count) - m * m.transpose();
+    return 0.5 * (cov + cov.transpose());
+  }
 };
 
 /// A voxel's Gaussian (eq 4) as scoring reads it, in one cache line: the mean, and the six
@@ -177,6 +184,21 @@ class VoxelGrid {
   void derive(std::size_t index) noexcept;  // gaussians_[index] from voxels_[index]'s sums
   // surface_patches: whether the voxels around `key` (with it) hold a plane, and its normal.
   bool neighbourhood_plane(const VoxelKey& key, Eigen::Vector3d& normal) const noexcept;
+  // surface_patches: the inverse covariance of a voxel with covariance `cov` in a plane.
+  Eigen::Matrix3d surface_patch(const Eigen::Matrix3d& cov,
+                                const Eigen::Vector3d& normal) const noexcept;
+  // f(index) for `key` and each of its 26 neighbours that is in the grid.
+  template <class F>
+  void for_each_around(const VoxelKey& key, F f) const noexcept {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const std::int64_t j = index_of(VoxelKey{key.x + dx, key.y + dy, key.z + dz});
+          if (j >= 0) f(static_cast<std::size_t>(j));
+        }
+      }
+    }
+  }
   // Drops the voxels for which pred holds, with their Gaussians, keeping the order and the
   // capacity; the table is left to rebuild.
   template <class Pred>
