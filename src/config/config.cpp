@@ -133,6 +133,12 @@ const std::vector<Field>& fields() {
        "Voxel consensus threshold: voxels with Cv below it are dropped before the fine match "
        "(paper: 0.7).",
        "", 0, 1},
+      {"odometry", "fine_reach_m", CNDT_REF(odometry.fine_reach_m),
+       "How far the fine match may move the pose from the coarse one (a turn counted by how far "
+       "it moves a point at the scan's RMS range). Cv judged the voxels where the coarse pose put "
+       "the points; a fine match going farther is matched again with every voxel (flag 128). "
+       "0 = no limit (the paper).",
+       "m", 0, 10},
       {"odometry", "scan_cell_m", CNDT_REF(odometry.scan_cell_m),
        "Downsampling of the scan being matched: the cell centroids are the points matched. "
        "Cells as large as the voxels make the score ripple along every plane (the centroids of "

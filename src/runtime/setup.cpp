@@ -80,6 +80,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
       od.reference == "previous-scan" ? slam::Reference::kPreviousScan : slam::Reference::kLocalMap;
   o.voxel_size = od.voxel_size_m;
   o.eta = od.eta;
+  o.fine_reach = od.fine_reach_m;
   o.scan_cell = od.scan_cell_m;
   o.map_cell = od.map_cell_m;
   o.min_range = od.min_range_m;

@@ -391,6 +391,12 @@ void ConsensusOdometry::update_reference(const Eigen::Isometry3d& pose) {
   admit_pending(pose * prev_motion_);
 }
 
+bool ConsensusOdometry::beyond_reach(const core::Pose6& a, const core::Pose6& b) const {
+  const Eigen::Isometry3d d = core::to_isometry(a).inverse() * core::to_isometry(b);
+  const double moved = d.translation().norm() + Eigen::AngleAxisd(d.linear()).angle() * rms_range_;
+  return !(moved <= options_.fine_reach);
+}
+
 bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
   ndt::NewtonResult r;
   if (options_.mode == OdometryMode::kNaive) {
@@ -416,6 +422,12 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
     }
     r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, &mask_, &lookup_cache_,
                           scan_motion(), &prior_);
+    if (options_.fine_reach > 0.0 && beyond_reach(coarse.pose, r.pose)) {
+      res.fine_iterations += r.iterations;
+      res.flags |= kOdomFineBeyondReach;
+      r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, nullptr, &lookup_cache_,
+                            scan_motion(), &prior_);
+    }
   }
   res.fine_iterations += r.iterations;
   res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
@@ -467,13 +479,20 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   // One scan period: the time between the last two stamps, or at the start this scan's own
   // span when it is a whole revolution.
   const double span = static_cast<double>((scan.end - scan.stamp).count()) * 1e-9;
-  period_s_ = have_prev2_ ? prev_period_s_ : (scan.complete() && span > 0.01 ? span : 0.1);
+  // A revolution with packets lost inside it still spans the whole turn (short by at most the
+  // packets lost at its end).
+  const bool whole_turn =
+      (scan.flags & (core::kScanPartial | core::kScanOverflow | core::kScanTimeJump |
+                     core::kScanGapCut | core::kScanEndOfStream)) == 0;
+  period_s_ = have_prev2_ ? prev_period_s_ : (whole_turn && span > 0.01 ? span : 0.1);
   const Eigen::Isometry3d motion =
       have_prev2_ ? scale_motion(prev_motion_, dt / period_s_) : Eigen::Isometry3d::Identity();
   // More than half a period without firings since the last scan: a gap in the data.
   const bool after_gap = have_prev2_ && !jumped && silence_s_ > 0.5 * period_s_;
   silence_s_ = 0.0;
-  if (scan.complete() && span > 0.01) revolution_s_ = span;
+  // Less than half of the turn swept (a stream's last revolution, or one cut short by a gap).
+  const bool short_sweep = !whole_turn && span < 0.5 * revolution_s_;
+  if (whole_turn && span > 0.01) revolution_s_ = span;
   // The prediction holds a velocity from before a gap, or a time step assumed across a jump.
   const bool trusted = prediction_trusted_ && !after_gap && !jumped;
   // In range, then downsampled: map_cell for the reference and Cv, scan_cell for matching.
@@ -495,8 +514,12 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   // (measured from mid-revolution with deskew_to_mid_scan): its lever in the matches.
   const double lever_origin = options_.deskew_to_mid_scan ? 0.5 : 0.0;
   lever_.clear();
-  for (const TimedPoint& p : scan_src_)
+  double range2 = 0.0;
+  for (const TimedPoint& p : scan_src_) {
     lever_.push_back((p.t / period_s_ - lever_origin) * to_period_);
+    range2 += p.p.squaredNorm();
+  }
+  rms_range_ = scan_src_.empty() ? 0.0 : std::sqrt(range2 / static_cast<double>(scan_src_.size()));
   scan_motion_.lever = lever_;
   const Eigen::Isometry3d predicted = prev_pose_ * motion;
   const Eigen::Isometry3d predicted_deskew = scale_motion(motion, to_period_);  // over one period
@@ -519,9 +542,10 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   // Not while the newest reference scan is still undistorted (below).
   solve_motion_ = options_.deskew && period_s_ > 0.0 && !newest_unskewed_;
   std::optional<Eigen::Isometry3d> first_velocity;  // motion per period, from the first match
-  // A revolution mostly lost is not matched: what is left can still be many points, but from a
-  // few sectors, which leave the pose poorly fixed and the deskew little to go by.
-  if (test_.size() < options_.min_points || scan.lost_packets > scan.packets) {
+  // A revolution mostly lost or mostly not swept is not matched: what is left can still be many
+  // points, but from a few sectors, which leave the pose poorly fixed and the deskew little to
+  // go by.
+  if (test_.size() < options_.min_points || scan.lost_packets > scan.packets || short_sweep) {
     res.flags |= kOdomTooFewPoints;
     res.pose = predicted;
     deskew_scan(predicted_deskew);

@@ -12,23 +12,31 @@
 
 namespace cndt::test {
 
-/// Simulates the first `seconds` of driving through `scene` (`seed` for the sensor's noise) and
-/// hands every scan the driver assembles to `sink`, the last partial one included. Returns the
-/// simulator's scan starts (ground truth).
+/// Simulates driving through `scene` with the sensor settings `o` and hands every scan the
+/// driver assembles to `sink`, the last partial one included. Returns the simulator's scan
+/// starts (ground truth).
+template <class Sink>
+std::vector<sim::ScanStart> simulate_scene(const sim::Scene& scene, const sim::LidarSimOptions& o,
+                                           Sink&& sink) {
+  sim::LidarSimulator simulator(scene, o);
+  vlp16::Driver driver({});
+  sim::SimPacket p;
+  while (simulator.next(p)) {
+    if (p.dropped) continue;  // lost on the way
+    driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
+  }
+  driver.finish(sink);
+  return simulator.scan_starts();
+}
+
+/// The first `seconds` of it with the default sensor (`seed` for the sensor's noise).
 template <class Sink>
 std::vector<sim::ScanStart> simulate_scene(const sim::Scene& scene, double seconds,
                                            std::uint64_t seed, Sink&& sink) {
   sim::LidarSimOptions o;
   o.duration_s = seconds;
   o.seed = seed;
-  sim::LidarSimulator simulator(scene, o);
-  vlp16::Driver driver({});
-  sim::SimPacket p;
-  while (simulator.next(p)) {
-    driver.on_data(core::ByteSpan(p.payload), std::chrono::nanoseconds(p.capture_time_ns), sink);
-  }
-  driver.finish(sink);
-  return simulator.scan_starts();
+  return simulate_scene(scene, o, sink);
 }
 
 /// The same for `seconds` of a `kind` drive with `movers` (`seed` for world, traffic and noise).

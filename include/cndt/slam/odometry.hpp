@@ -54,6 +54,13 @@ struct OdometryOptions {
   double scan_cell = 0.25;
   double map_cell = 0.1;  ///< downsampling of scans added to the reference and used for Cv, m
   double eta = 0.7;       ///< Cv threshold (paper: 0.7)
+  /// How far the fine match may take the pose from the coarse one, m (a point at the scan's RMS
+  /// range moved this far by a turn counts the same; 0 = any distance). Cv judged the voxels
+  /// with the points where the coarse pose put them; a fine match that goes farther has left
+  /// what the cut was made for, usually along a direction only the dropped voxels fixed (a young
+  /// reference's rings then pull it towards zero motion). It is then matched again from the
+  /// coarse pose with every voxel.
+  double fine_reach = 0.125;
   double min_range = 1.0, max_range = 100.0;  ///< m; nearer points are the vehicle itself
   /// Undistort every scan with the estimated motion (constant-velocity prediction, refined).
   bool deskew = true;
@@ -149,13 +156,16 @@ std::size_t cv_dof_capacity(const OdometryOptions& options);
 enum OdometryFlags : std::uint32_t {
   kOdomFirstScan = 1u << 0,     ///< starts the trajectory: identity pose
   kOdomNotConverged = 1u << 1,  ///< iteration cap reached
-  /// Not matched (too few points, or more of the revolution's packets lost than received); the
+  /// Not matched (too few points, more of the revolution's packets lost than received, or less
+  /// than half of the turn swept: a stream's last revolution, one cut short by a gap); the
   /// prediction is reported.
   kOdomTooFewPoints = 1u << 2,
   kOdomDegenerate = 1u << 3,      ///< the geometry does not fix the pose (Cm reported as 0)
   kOdomScanIncomplete = 1u << 4,  ///< the scan was partial, lossy or cut
   kOdomSkipped = 1u << 5,  ///< a partial first revolution, not used: no pose (the next one starts)
   kOdomRematched = 1u << 6,  ///< matched again from the prediction (see max_acceleration)
+  /// The fine match left the coarse pose by more than fine_reach: matched again without the cut.
+  kOdomFineBeyondReach = 1u << 7,
 };
 
 struct OdometryResult {
@@ -245,6 +255,8 @@ class ConsensusOdometry {
   void finalize_grids();
   // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res.
   bool match(const core::Pose6& x0, OdometryResult& res);
+  // Whether b lies farther than fine_reach from a (a turn counted at the scan's RMS range).
+  [[nodiscard]] bool beyond_reach(const core::Pose6& a, const core::Pose6& b) const;
   double consensus_at(const core::Pose6& x, std::vector<double>& cv);
 
   OdometryOptions options_;
@@ -262,6 +274,7 @@ class ConsensusOdometry {
   std::vector<TimedPoint> scan_src_;           // map_src_ at scan_cell
   std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
   std::vector<double> lever_;                  // per test_ point: its ndt::ScanMotion lever
+  double rms_range_ = 0.0;                     // of scan_src_, in the sensor frame
   ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for (deskew_for)
   bool solve_motion_ = false;                  // matches solve the scan's motion (deskew)
   double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
