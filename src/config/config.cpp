@@ -139,6 +139,13 @@ const std::vector<Field>& fields() {
        "the points; a fine match going farther is matched again with every voxel (flag 128). "
        "0 = no limit (the paper).",
        "m", 0, 10},
+      {"odometry", "pyramid_while_near", CNDT_REF(odometry.pyramid_while_near),
+       "While every scan in the local map lies within map_admit_distance_m of the vehicle (the "
+       "start, until it has moved that far from its first scan), match on the 1 m pyramid grid "
+       "alone (flag 256): the fine grid of a scan taken that near pulls towards zero motion, "
+       "its ring arcs lying where the new scan has its own. Helps platforms that start slowly "
+       "or sensors at 900-1200 rpm (under 0.5 m per revolution); off by default, as it costs "
+       "the consensus mode on a 600 rpm campus drive (docs/odometry.md)."},
       {"odometry", "scan_cell_m", CNDT_REF(odometry.scan_cell_m),
        "Downsampling of the scan being matched: the cell centroids are the points matched. "
        "Cells as large as the voxels make the score ripple along every plane (the centroids of "

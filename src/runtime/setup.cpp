@@ -81,6 +81,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.voxel_size = od.voxel_size_m;
   o.eta = od.eta;
   o.fine_reach = od.fine_reach_m;
+  o.pyramid_while_near = od.pyramid_while_near;
   o.scan_cell = od.scan_cell_m;
   o.map_cell = od.map_cell_m;
   o.min_range = od.min_range_m;

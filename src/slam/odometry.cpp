@@ -397,9 +397,23 @@ bool ConsensusOdometry::beyond_reach(const core::Pose6& a, const core::Pose6& b)
   return !(moved <= options_.fine_reach);
 }
 
+bool ConsensusOdometry::reference_near(const core::Pose6& pose) const {
+  const Eigen::Isometry3d at = core::to_isometry(pose);
+  for (std::size_t i = 0; i < in_grids_; ++i) {
+    const std::size_t k = (history_head_ + i) % history_.size();
+    if (!((history_pose_[k].inverse() * at).translation().norm() < options_.map_admit_distance)) {
+      return false;
+    }
+  }
+  return in_grids_ > 0;
+}
+
 bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
   ndt::NewtonResult r;
-  if (options_.mode == OdometryMode::kNaive) {
+  if (pyramid_only_) {
+    r = ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,
+                          scan_motion(), &prior_);
+  } else if (options_.mode == OdometryMode::kNaive) {
     r = ndt::newton_solve(grid_, test_, x0, options_.naive, nullptr, &lookup_cache_, scan_motion(),
                           &prior_);
   } else {
@@ -565,6 +579,9 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       x0 = search_start(x0, predicted.translation() - prev_pose_.translation(), along);
     }
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
+    pyramid_only_ = options_.pyramid_while_near && options_.reference == Reference::kLocalMap &&
+                    !pyramid_.empty() && reference_near(x0);
+    if (pyramid_only_) res.flags |= kOdomPyramidOnly;
     bool converged = false;
     int passes = 1 + options_.deskew_refinements;
     for (int pass = 0; pass < passes; ++pass) {

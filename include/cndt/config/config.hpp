@@ -37,6 +37,7 @@ struct Config {
     double voxel_size_m = 0.5;
     double eta = 0.7;
     double fine_reach_m = 0.125;
+    bool pyramid_while_near = false;
     double scan_cell_m = 0.25;
     double map_cell_m = 0.1;
     double min_range_m = 1.0;

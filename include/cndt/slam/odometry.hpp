@@ -113,6 +113,14 @@ struct OdometryOptions {
   /// The platform's top speed, m/s (40 = 144 km/h): how far the start search may reach.
   double max_speed = 40.0;
   bool pyramid_every_scan = true;
+  /// With the local-map reference: while every scan in it lies within map_admit_distance of the
+  /// pose the pyramid found (at the start, until the vehicle is that far from its first scan),
+  /// that pose is refined on the finest pyramid grid instead of the coarse and fine matches, and
+  /// flagged kOdomPyramidOnly. On the fine grid the Gaussians of a scan taken that near hold
+  /// its ring arcs where the new scan has its own, and pull the match towards zero motion.
+  /// Off by default: it saves slow and 900-1200 rpm starts but costs the consensus mode on a
+  /// 600 rpm campus drive (docs/odometry.md, "Pyramid while near").
+  bool pyramid_while_near = false;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
   ndt::NewtonOptions pyramid{.max_iterations = 10,
                              .translation_eps = 5e-3,
@@ -166,6 +174,8 @@ enum OdometryFlags : std::uint32_t {
   kOdomRematched = 1u << 6,  ///< matched again from the prediction (see max_acceleration)
   /// The fine match left the coarse pose by more than fine_reach: matched again without the cut.
   kOdomFineBeyondReach = 1u << 7,
+  /// Matched on the finest pyramid grid alone: every reference scan was near (pyramid_while_near).
+  kOdomPyramidOnly = 1u << 8,
 };
 
 struct OdometryResult {
@@ -255,6 +265,8 @@ class ConsensusOdometry {
   void finalize_grids();
   // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res.
   bool match(const core::Pose6& x0, OdometryResult& res);
+  // Whether every scan in the reference grids lies within map_admit_distance of `pose`.
+  [[nodiscard]] bool reference_near(const core::Pose6& pose) const;
   // Whether b lies farther than fine_reach from a (a turn counted at the scan's RMS range).
   [[nodiscard]] bool beyond_reach(const core::Pose6& a, const core::Pose6& b) const;
   double consensus_at(const core::Pose6& x, std::vector<double>& cv);
@@ -275,6 +287,7 @@ class ConsensusOdometry {
   std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
   std::vector<double> lever_;                  // per test_ point: its ndt::ScanMotion lever
   double rms_range_ = 0.0;                     // of scan_src_, in the sensor frame
+  bool pyramid_only_ = false;                  // this scan: matched on the pyramid alone
   ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for (deskew_for)
   bool solve_motion_ = false;                  // matches solve the scan's motion (deskew)
   double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
