@@ -269,6 +269,7 @@ struct SceneRun {
   std::vector<sim::ScanStart> starts;
   std::vector<TimedPose> est;
   std::vector<double> truth_t;
+  std::vector<std::uint32_t> flags;  // of each pose in est
 };
 SceneRun run_scene(const sim::Scene& scene, const sim::LidarSimOptions& sensor,
                    const OdometryOptions& options = {}) {
@@ -281,8 +282,19 @@ SceneRun run_scene(const sim::Scene& scene, const sim::LidarSimOptions& sensor,
     const double t = static_cast<double>(scan.stamp.count()) * 1e-9;
     run.est.push_back({t, r.pose});
     run.truth_t.push_back(t);
+    run.flags.push_back(r.flags);
   });
   return run;
+}
+// A sensor turning at `rpm` for `seconds` (`seed` for its noise), losing `drop_rate` of packets.
+sim::LidarSimOptions sensor_at(int rpm, double seconds, std::uint64_t seed,
+                               double drop_rate = 0.0) {
+  sim::LidarSimOptions o;
+  o.rpm = rpm;
+  o.duration_s = seconds;
+  o.seed = seed;
+  o.drop_rate = drop_rate;
+  return o;
 }
 SceneRun run_scene(const sim::Scene& scene, double seconds, std::uint64_t seed) {
   sim::LidarSimOptions sensor;
@@ -457,11 +469,7 @@ TEST(Odometry, StartsMovingWithTheSensorTiltedDown) {
 // than fine_reach: beyond it, it is matched again with every voxel.
 TEST(Odometry, TheFineMatchStaysNearTheCoarsePoseItsCutWasMadeAt) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 3.0, 4, 3);
-  sim::LidarSimOptions sensor;
-  sensor.rpm = 1200;
-  sensor.duration_s = 1.5;
-  sensor.seed = 3;
-  const SceneRun run = run_scene(scene, sensor);
+  const SceneRun run = run_scene(scene, sensor_at(1200, 1.5, 3));
   ASSERT_GE(run.est.size(), 25u);
   const double worst = worst_pair_error(run, 0.3);
   std::printf("worst pair over the first 1.5 s at 1200 rpm: %.3f m\n", worst);
@@ -476,22 +484,12 @@ TEST(Odometry, TheFineMatchStaysNearTheCoarsePoseItsCutWasMadeAt) {
 // pyramid grid.
 TEST(Odometry, ASlowStartIsMatchedOnThePyramidUntilTheFirstScanIsBehind) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kCampus, 4.0, 4, 5);
-  sim::LidarSimOptions sensor;
-  sensor.rpm = 1200;
-  sensor.duration_s = 2.0;
-  sensor.seed = 5;
   OdometryOptions options;
   options.pyramid_while_near = true;
-  std::size_t pyramid_only = 0;
-  ConsensusOdometry odometry(options);
-  SceneRun run;
-  run.starts = test::simulate_scene(scene, sensor, [&](core::Scan& scan) {
-    const OdometryResult r = odometry.process(scan);
-    if ((r.flags & kOdomPyramidOnly) != 0) ++pyramid_only;
-    if ((r.flags & kOdomSkipped) != 0) return;
-    run.est.push_back({static_cast<double>(scan.stamp.count()) * 1e-9, r.pose});
-    run.truth_t.push_back(run.est.back().t);
-  });
+  const SceneRun run = run_scene(scene, sensor_at(1200, 2.0, 5), options);
+  const auto pyramid_only = static_cast<std::size_t>(
+      std::count_if(run.flags.begin(), run.flags.end(),
+                    [](std::uint32_t f) { return (f & kOdomPyramidOnly) != 0; }));
   ASSERT_GE(run.est.size(), 35u);
   const double worst = worst_pair_error(run, 0.1);
   std::printf(
@@ -508,12 +506,7 @@ TEST(Odometry, ASlowStartIsMatchedOnThePyramidUntilTheFirstScanIsBehind) {
 // predicted with half the true velocity.
 TEST(Odometry, StartsAt1200RpmWithPacketsLost) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 4.0, 4, 1);
-  sim::LidarSimOptions sensor;
-  sensor.rpm = 1200;
-  sensor.drop_rate = 0.05;
-  sensor.duration_s = 2.0;
-  sensor.seed = 1;
-  const SceneRun run = run_scene(scene, sensor);
+  const SceneRun run = run_scene(scene, sensor_at(1200, 2.0, 1, 0.05));
   ASSERT_GE(run.est.size(), 25u);
   const double worst = worst_pair_error(run, 0.3);
   std::printf("worst pair over the first 2 s at 1200 rpm, 5 %% of packets lost: %.3f m\n", worst);
@@ -525,20 +518,8 @@ TEST(Odometry, StartsAt1200RpmWithPacketsLost) {
 // off. It gets the constant-velocity prediction and the flag that it was not matched.
 TEST(Odometry, AShortLastRevolutionIsNotMatched) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kLoop, 4.0, 4, 6);
-  sim::LidarSimOptions sensor;
-  sensor.rpm = 300;
-  sensor.duration_s = 4.0;
-  sensor.seed = 6;
-  ConsensusOdometry odometry({});
-  SceneRun run;
-  std::vector<std::uint32_t> flags;
-  run.starts = test::simulate_scene(scene, sensor, [&](core::Scan& scan) {
-    const OdometryResult r = odometry.process(scan);
-    if ((r.flags & kOdomSkipped) != 0) return;
-    run.est.push_back({static_cast<double>(scan.stamp.count()) * 1e-9, r.pose});
-    run.truth_t.push_back(run.est.back().t);
-    flags.push_back(r.flags);
-  });
+  const SceneRun run = run_scene(scene, sensor_at(300, 4.0, 6));
+  const std::vector<std::uint32_t>& flags = run.flags;
   ASSERT_GE(run.est.size(), 19u);
   EXPECT_NE(flags.back() & kOdomScanIncomplete, 0u);
   EXPECT_NE(flags.back() & kOdomTooFewPoints, 0u);
