@@ -1,6 +1,7 @@
 // The simulator's capture decodes back to the simulator's own points and scan times.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -11,6 +12,7 @@
 #include "cndt/cli/capture.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/vlp16/decoder.hpp"
+#include "sim_scans.hpp"
 #include "slurp.hpp"
 #include "temp_dir.hpp"
 
@@ -357,6 +359,35 @@ TEST(SimScene, AMountTurnsTheSensorOnTheVehicle) {
     EXPECT_NEAR((b.linear() * Eigen::Vector3d::UnitX()).z(), -std::sin(tilt), 1e-12) << t;
     EXPECT_TRUE((a.linear().transpose() * b.linear()).isApprox(tilted.mount, 1e-12)) << t;
   }
+}
+
+// `cndt sim --height`: the sensor rides at the scene's sensor_height above the ground, and the
+// ground returns, decoded, lie that far below it.
+TEST(SimScene, TheSensorHeightSetsWhereTheGroundIs) {
+  Scene low = build_scene(SceneKind::kStreet, 2.0, 0, 2);
+  low.motion_scale = 0.0;
+  low.sensor_height = 0.5;
+  for (double t = 0.0; t < 2.0; t += 0.37) {
+    EXPECT_NEAR(low.sensor_pose(t).translation().z(), 0.5, 1e-12) << t;
+  }
+  LidarSimOptions o;
+  o.duration_s = 0.3;
+  o.noise_m = 0.0;
+  std::size_t ground = 0;
+  double lowest = 0.0, highest = -1e9;
+  test::simulate_scene(low, o, [&](core::Scan& scan) {
+    for (const core::Point& p : scan.points) {
+      // Near the sensor and below it: the road (the lowest laser, -15 deg, meets it 1.9 m out).
+      if (std::hypot(p.x, p.y) > 4.0 || p.z > -0.25) continue;
+      ++ground;
+      lowest = std::min(lowest, static_cast<double>(p.z));
+      highest = std::max(highest, static_cast<double>(p.z));
+    }
+  });
+  std::printf("%zu ground returns within 4 m, z from %.4f to %.4f m\n", ground, lowest, highest);
+  EXPECT_GT(ground, 500u);
+  EXPECT_NEAR(lowest, -0.5, 0.01);
+  EXPECT_NEAR(highest, -0.5, 0.01);
 }
 
 TEST(SimScene, YawRateIsContinuousThroughCorners) {
