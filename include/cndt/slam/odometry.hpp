@@ -185,9 +185,10 @@ struct OdometryResult {
   int coarse_iterations = 0;
   int fine_iterations = 0;        ///< naive mode: its single optimisation
   std::size_t voxels_before = 0;  ///< reference voxels the scan's points fell in (coarse pose)
-  std::size_t voxels_after = 0;   ///< of those, kept by the Cv cut
-  std::size_t points = 0;         ///< points matched (after downsampling)
-  std::size_t raw_points = 0;     ///< points of the scan within range
+  /// Of those, kept by the Cv cut (with kOdomFineBeyondReach the final fine match used them all).
+  std::size_t voxels_after = 0;
+  std::size_t points = 0;      ///< points matched (after downsampling)
+  std::size_t raw_points = 0;  ///< points of the scan within range
   /// Smallest over largest eigenvalue of the final match's Hessian, translation block (see
   /// OdometryOptions::degenerate_conditioning); 0 when the scan was not matched.
   double conditioning = 0.0;
