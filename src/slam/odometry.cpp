@@ -495,9 +495,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   const double span = static_cast<double>((scan.end - scan.stamp).count()) * 1e-9;
   // A revolution with packets lost inside it still spans the whole turn (short by at most the
   // packets lost at its end).
-  const bool whole_turn =
-      (scan.flags & (core::kScanPartial | core::kScanOverflow | core::kScanTimeJump |
-                     core::kScanGapCut | core::kScanEndOfStream)) == 0;
+  const bool whole_turn = scan.whole_turn();
   period_s_ = have_prev2_ ? prev_period_s_ : (whole_turn && span > 0.01 ? span : 0.1);
   const Eigen::Isometry3d motion =
       have_prev2_ ? scale_motion(prev_motion_, dt / period_s_) : Eigen::Isometry3d::Identity();

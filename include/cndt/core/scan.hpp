@@ -60,9 +60,13 @@ struct Scan {
   std::uint32_t points_dropped = 0;   ///< points refused because the buffer was full
   std::vector<Point> points;
 
+  /// From the cut angle round to it again: packets may be missing inside it.
+  [[nodiscard]] bool whole_turn() const noexcept {
+    return (flags &
+            (kScanPartial | kScanOverflow | kScanTimeJump | kScanGapCut | kScanEndOfStream)) == 0;
+  }
   [[nodiscard]] bool complete() const noexcept {
-    return (flags & (kScanPartial | kScanPacketLoss | kScanOverflow | kScanTimeJump | kScanGapCut |
-                     kScanEndOfStream)) == 0;
+    return whole_turn() && (flags & kScanPacketLoss) == 0;
   }
   void reset() noexcept {
     stamp = end = std::chrono::nanoseconds{0};
