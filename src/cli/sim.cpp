@@ -44,6 +44,11 @@ void register_sim(CLI::App& app, SimArgs& a) {
                   "AT SECONDS: at AT seconds into the drive the vehicle brakes to a standstill "
                   "(over 3 s), stands for SECONDS and pulls away again (over 3 s)")
       ->expected(2);
+  cmd->add_option("--start-still", a.start_still_s,
+                  "SECONDS: the vehicle stands for SECONDS at the start and then pulls away "
+                  "(over 3 s), as a drive from a parked car or a robot at rest does (default 0: "
+                  "at speed from the first scan)")
+      ->check(CLI::Range(0.0, 3600.0));
   cmd->add_option("--clock-step", a.clock_step,
                   "AT SECONDS: from AT seconds into the drive the sensor's clock reads SECONDS "
                   "more (negative: less), as when a time source takes over; packets keep coming "
@@ -128,6 +133,7 @@ int run_sim(const SimArgs& a) {
     scene.stop_at_s = a.stop[0];
     scene.stop_s = a.stop[1];
   }
+  scene.start_still_s = a.start_still_s;
   sim::LidarSimOptions o;
   o.rpm = a.rpm;
   o.dual = a.dual;

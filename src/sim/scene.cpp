@@ -260,17 +260,29 @@ Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t s
 }
 
 double Scene::drive_time(double t) const {
-  if (stop_s <= 0.0 || t <= stop_at_s) return t;
-  // d(drive time)/dt falls from 1 to 0 as (1 + cos) / 2 over the ramp, stays 0 for stop_s and
-  // rises back as (1 - cos) / 2.
   const double r = stop_ramp_s, w = kPi / r;
-  const double braked = 0.5 * r;  // drive time passed while braking
-  double x = t - stop_at_s;
-  if (x < r) return stop_at_s + 0.5 * x + 0.5 * std::sin(w * x) / w;
-  x -= r + stop_s;
-  if (x < 0.0) return stop_at_s + braked;
-  if (x < r) return stop_at_s + braked + 0.5 * x - 0.5 * std::sin(w * x) / w;
-  return stop_at_s + braked + 0.5 * r + (x - r);
+  double d = t;
+  if (stop_s > 0.0 && t > stop_at_s) {
+    // d(drive time)/dt falls from 1 to 0 as (1 + cos) / 2 over the ramp, stays 0 for stop_s and
+    // rises back as (1 - cos) / 2.
+    const double braked = 0.5 * r;  // drive time passed while braking
+    double x = t - stop_at_s;
+    if (x < r) {
+      d = stop_at_s + 0.5 * x + 0.5 * std::sin(w * x) / w;
+    } else if (x -= r + stop_s; x < 0.0) {
+      d = stop_at_s + braked;
+    } else if (x < r) {
+      d = stop_at_s + braked + 0.5 * x - 0.5 * std::sin(w * x) / w;
+    } else {
+      d = stop_at_s + braked + 0.5 * r + (x - r);
+    }
+  }
+  // A start from rest: standing, then the pull-away's rise as above.
+  if (start_still_s > 0.0) {
+    const double x = d - start_still_s;
+    d = x <= 0.0 ? 0.0 : x < r ? 0.5 * x - 0.5 * std::sin(w * x) / w : 0.5 * r + (x - r);
+  }
+  return d;
 }
 
 double Scene::sensor_arc(double t_true) const {

@@ -106,6 +106,26 @@ TEST(CliRoundTrip, SimInfoDecode) {
   EXPECT_EQ(magic, "ply");
 }
 
+// `--start-still`: the ground truth stands at its first position for that long, then moves.
+TEST(CliRoundTrip, SimStartsFromRest) {
+  EXPECT_EQ(run("sim --out /tmp/x --start-still -1").code, 2);
+  cndt::test::TempDir dir;
+  const CliRun r = run("sim --scene street --duration 1.5 --start-still 1 --out " + dir.file("s"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream gt(dir.file("s/groundtruth.tum"));
+  std::vector<std::string> positions;  // x y z of each line
+  for (std::string l; std::getline(gt, l);) {
+    if (l.empty() || l[0] == '#') continue;
+    std::istringstream in(l);
+    std::string t, x, y, z;
+    in >> t >> x >> y >> z;
+    positions.push_back(x + " " + y + " " + z);
+  }
+  ASSERT_GE(positions.size(), 15u);
+  for (std::size_t i = 1; i < 10; ++i) EXPECT_EQ(positions[i], positions[0]) << i;
+  EXPECT_NE(positions.back(), positions[0]);
+}
+
 TEST(CliReplay, WritesTrajectoryScansAndSummaryThatEvalReads) {
   cndt::test::TempDir dir;
   CliRun r = run("sim --scene street --duration 1.5 --out " + dir.file("s"));

@@ -313,6 +313,35 @@ TEST(SimScene, AStopHoldsTheSensorStillBetweenSmoothRamps) {
       1e-6);
 }
 
+// A start from rest: the sensor stands (its sway frozen) until start_still_s, its speed then
+// rises without a jump, and once up to speed the drive is the plain one, later by the standing
+// time and half the ramp.
+TEST(SimScene, AStartFromRestStandsThenPullsAwaySmoothly) {
+  const Scene plain = build_scene(SceneKind::kStreet, 20.0, 0, 2);
+  Scene resting = plain;
+  resting.start_still_s = 2.0;
+  const double r = resting.stop_ramp_s;
+  const Eigen::Isometry3d first = resting.sensor_pose(0.0);
+  for (double t = 0.0; t <= 2.0; t += 0.25) {
+    const Eigen::Isometry3d d = first.inverse() * resting.sensor_pose(t);
+    EXPECT_LT(d.translation().norm(), 1e-12) << t;
+    EXPECT_LT(Eigen::AngleAxisd(d.linear()).angle(), 1e-12) << t;
+  }
+  EXPECT_GT((resting.sensor_pose(2.5).translation() - first.translation()).norm(), 0.0);
+  constexpr double kStep = 0.05;
+  double last_speed = 0.0, peak_change = 0.0;
+  for (double t = kStep; t < 20.0; t += kStep) {
+    const double speed = (resting.sensor_arc(t) - resting.sensor_arc(t - kStep)) / kStep;
+    peak_change = std::max(peak_change, std::abs(speed - last_speed));
+    last_speed = speed;
+  }
+  EXPECT_LT(peak_change, 0.3);
+  EXPECT_LT((resting.sensor_pose(12.0).translation() -
+             plain.sensor_pose(12.0 - 2.0 - 0.5 * r).translation())
+                .norm(),
+            1e-6);
+}
+
 // A speed given replaces the scene's own: the mean over the 17 s cycle of +-20 % is that speed,
 // and the path is long enough for the whole drive. Without one the street keeps its 8 m/s.
 TEST(SimScene, AGivenSpeedReplacesTheScenesOwn) {

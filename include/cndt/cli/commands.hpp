@@ -71,6 +71,7 @@ struct SimArgs {
   std::vector<double> outage;      // start and length, s
   std::vector<double> clock_step;  // when and by how much, s
   std::vector<double> stop;        // when and how long, s
+  double start_still_s = 0.0;      // standing at the start, s
   bool dual = false;
   int rpm = 600;
   double noise_m = 0.01;

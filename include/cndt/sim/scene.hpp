@@ -61,6 +61,10 @@ struct Scene {
   /// A stop: from stop_at_s the vehicle brakes to a standstill over stop_ramp_s, stands for
   /// stop_s and pulls away again over stop_ramp_s (stop_s = 0: no stop).
   double stop_at_s = 0.0, stop_s = 0.0, stop_ramp_s = 3.0;
+  /// A start from rest: the vehicle stands for start_still_s and then pulls away over
+  /// stop_ramp_s (0: it is at speed from the first instant). A stop still comes at stop_at_s
+  /// when that is after the pull-away.
+  double start_still_s = 0.0;
   std::vector<Mover> movers;
 
   /// T_world_sensor at `t` seconds after the start.
