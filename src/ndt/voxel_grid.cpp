@@ -282,6 +282,14 @@ Eigen::Matrix3d VoxelGrid::surface_patch(const Eigen::Matrix3d& cov,
   return A;
 }
 
+void VoxelGrid::set_surface_patches(bool on) noexcept {
+  if (on == options_.surface_patches) return;
+  options_.surface_patches = on;
+  for (std::size_t i = 0; i < voxels_.size(); ++i) {
+    if (voxels_[i].count > 0) mark_dirty(voxels_[i], i);
+  }
+}
+
 void VoxelGrid::finalize() noexcept {
   if (options_.surface_patches) {
     // A voxel's Gaussian reads its neighbours' sums: theirs change with it.

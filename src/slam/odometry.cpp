@@ -208,6 +208,9 @@ void ConsensusOdometry::finalize_grids() {
     g.finalize();
     if (g.refused_points() > 0 || g.empty_voxels() * 4 > g.size()) g.compact();
   };
+  // Surface patches once the local map holds enough scans to judge a plane by.
+  if (options_.surface_patches)
+    grid_.set_surface_patches(in_grids_ >= options_.patches_after_scans);
   finalize(grid_);
   for (ndt::VoxelGrid& g : pyramid_) finalize(g);
 }

@@ -53,6 +53,7 @@ struct Config {
     double max_speed_mps = 40.0;
     double prior_weight = 0.003;
     bool surface_patches = false;
+    std::int64_t patches_after_scans = 4;
     bool deskew_to_mid_scan = false;
     std::int64_t guess_jitter_seed = 0;
   } odometry;

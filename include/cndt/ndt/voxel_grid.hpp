@@ -116,6 +116,9 @@ class VoxelGrid {
   /// enough points: mu = m / N; Sigma = S / N - mu mu^T (population covariance, divisor N), with
   /// every eigenvalue below eigen_floor x the largest raised to that value.
   void finalize() noexcept;
+  /// Turns surface patches on or off for the voxels held and those to come: every held voxel
+  /// is derived again at the next finalize(). Allocates nothing.
+  void set_surface_patches(bool on) noexcept;
   void clear() noexcept;
   /// Drops the empty voxels left by remove() and rebuilds the table (indices change). Changes
   /// not yet finalized are finalized first.

@@ -94,9 +94,14 @@ struct OdometryOptions {
   std::size_t min_points = 200;  ///< fewer matched points: the scan is not matched
   bool drop_ring_arcs = false;   ///< reference voxels holding a single ring arc get no Gaussian
   /// Reference voxels in a planar neighbourhood are matched as pieces of the plane
-  /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"). Off: a
-  /// campus drive at 1200 rpm was lost with it.
+  /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"), once the
+  /// local map holds patches_after_scans scans: a plane judged from the sums of one to three
+  /// scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs, and campus drives at
+  /// 1200 rpm were lost with patches from the first scan. Off: the paper's Gaussians (eq 4),
+  /// under which consensus keeps its lead over naive; with it and pyramid_while_near both
+  /// modes are more accurate and level.
   bool surface_patches = false;
+  std::size_t patches_after_scans = 4;
   /// Coarser grids of the same reference the scan is matched on first, coarsest first. Their
   /// Gaussians are blurred (eigenvalues floored at pyramid_eigen_floor x the largest) and voxels
   /// holding a single ring arc get none, so they pull from much farther than the fine grid,
@@ -118,8 +123,9 @@ struct OdometryOptions {
   /// that pose is refined on the finest pyramid grid instead of the coarse and fine matches, and
   /// flagged kOdomPyramidOnly. On the fine grid the Gaussians of a scan taken that near hold
   /// its ring arcs where the new scan has its own, and pull the match towards zero motion.
-  /// Off by default: it saves slow and 900-1200 rpm starts but costs the consensus mode on a
-  /// 600 rpm campus drive (docs/odometry.md, "Pyramid while near").
+  /// It saves slow, from-rest and 900-1200 rpm starts (docs/odometry.md, "Pyramid while
+  /// near"); off by default, as without surface patches it costs the consensus mode on a
+  /// 600 rpm campus drive. Turn both on together.
   bool pyramid_while_near = false;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
   ndt::NewtonOptions pyramid{.max_iterations = 10,

@@ -790,5 +790,35 @@ TEST(VoxelGrid, SurfacePatchesTakeTheRingsOutOfAFloor) {
   }
 }
 
+// Surface patches turned on for a grid that already holds voxels derive those again (the
+// odometry turns them on once its map holds a few scans), and off gives the voxel Gaussians back
+// bit for bit.
+TEST(VoxelGrid, SurfacePatchesSwitchedOnLaterApplyToTheVoxelsHeld) {
+  std::vector<Eigen::Vector3d> floor;
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 40; ++j) floor.emplace_back(0.05 * i, 0.05 * j, 0.002 * ((i * 7 + j) % 3));
+  }
+  VoxelGrid plain({0.5, 10'000, 5, 0.001, false, false});
+  VoxelGrid patched({0.5, 10'000, 5, 0.001, false, true});
+  VoxelGrid switched({0.5, 10'000, 5, 0.001, false, false});
+  for (VoxelGrid* g : {&plain, &patched, &switched}) {
+    for (const auto& p : floor) g->add(p);
+    g->finalize();
+  }
+  const std::vector<Eigen::Vector3d> probe{{0.9, 0.9, 0.0}, {1.1, 0.6, 0.01}, {0.3, 1.4, -0.01}};
+  auto score = [&](const VoxelGrid& g) {
+    Pose6 shifted = Pose6::Zero();
+    shifted(0) = 0.2;  // along the floor
+    return ndt_score(g, probe, shifted, false, nullptr, Neighbours::kSeven).score;
+  };
+  ASSERT_NE(score(plain), score(patched));
+  switched.set_surface_patches(true);
+  switched.finalize();
+  EXPECT_EQ(score(switched), score(patched));
+  switched.set_surface_patches(false);
+  switched.finalize();
+  EXPECT_EQ(score(switched), score(plain));
+}
+
 }  // namespace
 }  // namespace cndt::ndt
