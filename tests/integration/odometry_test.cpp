@@ -439,7 +439,8 @@ TEST(Odometry, PullsAwayFromRest) {
       EXPECT_LT((run.est.front().pose.inverse() * run.est[k + 1].pose).translation().norm(), 0.01);
     }
   }
-  // Over the whole drive, along the ground (the height drifts as in every drive, Tilt).
+  // Over the whole drive, along the ground (the height drifts as in every drive:
+  // docs/odometry.md, "Tilt at the start").
   const Eigen::Isometry3d dg = gt.front().inverse() * gt.back();
   const Eigen::Isometry3d de = run.est.front().pose.inverse() * run.est.back().pose;
   const Eigen::Vector3d err = (dg.inverse() * de).translation();
