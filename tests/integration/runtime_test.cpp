@@ -233,6 +233,28 @@ TEST(Runtime, ThreadedReplayEqualsASingleThreadedLoopEveryTime) {
   }
 }
 
+// Holds the mapper inside its first keyframe until the odometry has done `n` more scans
+// (at most 60 s).
+struct MapperHold {
+  explicit MapperHold(std::uint64_t n) : more_scans(n) {}
+  void attach(Pipeline& p) {
+    p.on_keyframe([this, &p](const slam::Mapper&, double) {
+      if (held.exchange(true)) return;  // the first keyframe only
+      const std::uint64_t at = p.stats().scans_done;
+      const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      while (std::chrono::steady_clock::now() < until) {
+        if (p.stats().scans_done >= at + more_scans) {
+          ran_ahead = true;
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    });
+  }
+  std::uint64_t more_scans;
+  std::atomic<bool> held{false}, ran_ahead{false};
+};
+
 // Replay: the odometry does not wait for the mapper either. While the mapper is held inside a
 // keyframe, the odometry goes on with the next scans; their poses are published later, once the
 // mapper has answered for each, and are still those of the single-threaded loop.
@@ -243,23 +265,11 @@ TEST(Runtime, ReplayOdometryRunsAheadOfABusyMapper) {
   o.keyframe_ring = 8;
   const Reference ref = single_threaded(o, scans);
   PosePublisher publisher{PublisherOptions{}};
-  std::atomic<bool> held{false}, ran_ahead{false};
-  const auto results = run_pipeline(o, publisher, scans, nullptr, 150'000, [&](Pipeline& p) {
-    p.on_keyframe([&](const slam::Mapper&, double) {
-      if (held.exchange(true)) return;  // the first keyframe only
-      const std::uint64_t at = p.stats().scans_done;
-      const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-      while (std::chrono::steady_clock::now() < until) {
-        if (p.stats().scans_done >= at + 3) {
-          ran_ahead = true;
-          break;
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
-    });
-  });
-  EXPECT_TRUE(held);
-  EXPECT_TRUE(ran_ahead) << "the odometry waited for the mapper";
+  MapperHold hold(3);
+  const auto results =
+      run_pipeline(o, publisher, scans, nullptr, 150'000, [&](Pipeline& p) { hold.attach(p); });
+  EXPECT_TRUE(hold.held);
+  EXPECT_TRUE(hold.ran_ahead) << "the odometry waited for the mapper";
   std::size_t k = 0;
   for (const auto& res : results) {
     if (!res.published_pose) continue;
@@ -285,23 +295,11 @@ TEST(Runtime, LiveMapperBufferFullSkipsScansForTheMapperOnly) {
   o.keyframe_ring_points = 1000;  // raised to max_points: 30k, two scans
   PosePublisher publisher{PublisherOptions{}};
   PipelineStats st;
-  std::atomic<bool> held{false}, ran_ahead{false};
-  const auto results = run_pipeline(o, publisher, scans, &st, 30'000, [&](Pipeline& p) {
-    p.on_keyframe([&](const slam::Mapper&, double) {
-      if (held.exchange(true)) return;  // the first keyframe only
-      const std::uint64_t at = p.stats().scans_done;
-      const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-      while (std::chrono::steady_clock::now() < until) {
-        if (p.stats().scans_done >= at + 4) {
-          ran_ahead = true;
-          break;
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
-    });
-  });
-  EXPECT_TRUE(held);
-  EXPECT_TRUE(ran_ahead) << "the odometry waited for the mapper";
+  MapperHold hold(4);
+  const auto results =
+      run_pipeline(o, publisher, scans, &st, 30'000, [&](Pipeline& p) { hold.attach(p); });
+  EXPECT_TRUE(hold.held);
+  EXPECT_TRUE(hold.ran_ahead) << "the odometry waited for the mapper";
   EXPECT_EQ(st.scans_dropped, 0u);
   EXPECT_EQ(st.scans_done, scans.size());
   EXPECT_EQ(results.size(), scans.size());
