@@ -261,27 +261,26 @@ Scene build_scene(SceneKind kind, double duration_s, int movers, std::uint64_t s
 
 double Scene::drive_time(double t) const {
   const double r = stop_ramp_s, w = kPi / r;
+  // The drive time `x` seconds into a pull-away that starts at drive time `base`:
+  // d(drive time)/dt rises from 0 to 1 as (1 - cos) / 2 over the ramp.
+  auto pull_away = [&](double base, double x) {
+    return x < r ? base + 0.5 * x - 0.5 * std::sin(w * x) / w : base + 0.5 * r + (x - r);
+  };
   double d = t;
   if (stop_s > 0.0 && t > stop_at_s) {
     // d(drive time)/dt falls from 1 to 0 as (1 + cos) / 2 over the ramp, stays 0 for stop_s and
-    // rises back as (1 - cos) / 2.
+    // rises back.
     const double braked = 0.5 * r;  // drive time passed while braking
-    double x = t - stop_at_s;
+    const double x = t - stop_at_s;
     if (x < r) {
       d = stop_at_s + 0.5 * x + 0.5 * std::sin(w * x) / w;
-    } else if (x -= r + stop_s; x < 0.0) {
-      d = stop_at_s + braked;
-    } else if (x < r) {
-      d = stop_at_s + braked + 0.5 * x - 0.5 * std::sin(w * x) / w;
     } else {
-      d = stop_at_s + braked + 0.5 * r + (x - r);
+      const double after = x - (r + stop_s);
+      d = after < 0.0 ? stop_at_s + braked : pull_away(stop_at_s + braked, after);
     }
   }
-  // A start from rest: standing, then the pull-away's rise as above.
-  if (start_still_s > 0.0) {
-    const double x = d - start_still_s;
-    d = x <= 0.0 ? 0.0 : x < r ? 0.5 * x - 0.5 * std::sin(w * x) / w : 0.5 * r + (x - r);
-  }
+  // A start from rest: standing, then pulling away.
+  if (start_still_s > 0.0) d = d <= start_still_s ? 0.0 : pull_away(0.0, d - start_still_s);
   return d;
 }
 

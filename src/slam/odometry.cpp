@@ -413,7 +413,7 @@ bool ConsensusOdometry::reference_near(const core::Pose6& pose) const {
 
 bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
   ndt::NewtonResult r;
-  if (pyramid_only_) {
+  if ((res.flags & kOdomPyramidOnly) != 0) {
     r = ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,
                           scan_motion(), &prior_);
   } else if (options_.mode == OdometryMode::kNaive) {
@@ -580,9 +580,10 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       x0 = search_start(x0, predicted.translation() - prev_pose_.translation(), along);
     }
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
-    pyramid_only_ = options_.pyramid_while_near && options_.reference == Reference::kLocalMap &&
-                    !pyramid_.empty() && reference_near(x0);
-    if (pyramid_only_) res.flags |= kOdomPyramidOnly;
+    if (options_.pyramid_while_near && options_.reference == Reference::kLocalMap &&
+        !pyramid_.empty() && reference_near(x0)) {
+      res.flags |= kOdomPyramidOnly;  // match() reads it
+    }
     bool converged = false;
     int passes = 1 + options_.deskew_refinements;
     for (int pass = 0; pass < passes; ++pass) {

@@ -270,7 +270,8 @@ class ConsensusOdometry {
   void add_to_grids(std::span<const Eigen::Vector3d> points);
   void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
-  // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res.
+  // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res. With
+  // kOdomPyramidOnly in res.flags, a match on the finest pyramid grid instead.
   bool match(const core::Pose6& x0, OdometryResult& res);
   // Whether every scan in the reference grids lies within map_admit_distance of `pose`.
   [[nodiscard]] bool reference_near(const core::Pose6& pose) const;
@@ -294,7 +295,6 @@ class ConsensusOdometry {
   std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
   std::vector<double> lever_;                  // per test_ point: its ndt::ScanMotion lever
   double rms_range_ = 0.0;                     // of scan_src_, in the sensor frame
-  bool pyramid_only_ = false;                  // this scan: matched on the pyramid alone
   ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for (deskew_for)
   bool solve_motion_ = false;                  // matches solve the scan's motion (deskew)
   double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
