@@ -432,7 +432,9 @@ double worst_pair_error(const SceneRun& run, double min_step) {
   for (std::size_t k = 0; k + 1 < gt.size() && k + 1 < run.est.size(); ++k) {
     const Eigen::Isometry3d dg = gt[k].inverse() * gt[k + 1];
     const Eigen::Isometry3d de = run.est[k].pose.inverse() * run.est[k + 1].pose;
-    if (min_step > 0.0) EXPECT_GT(dg.translation().norm(), min_step);
+    if (min_step > 0.0) {
+      EXPECT_GT(dg.translation().norm(), min_step);
+    }
     worst = std::max(worst, (dg.inverse() * de).translation().norm());
   }
   return worst;
