@@ -147,6 +147,19 @@ const std::vector<Field>& fields() {
        "or from rest and sensors at 900-1200 rpm (under 0.5 m per revolution). Off by default: "
        "alone it costs the consensus mode on a 600 rpm campus drive; with surface_patches "
        "(turn both on) it does not (docs/odometry.md)."},
+      {"odometry", "near_shortfall_fraction", CNDT_REF(odometry.near_shortfall_fraction),
+       "While every scan in the local map lies within map_admit_distance_m of the pyramid's "
+       "pose (as for pyramid_while_near): when the coarse and fine matches move the sensor "
+       "less far than the pyramid did, short by more than this fraction of the pyramid's "
+       "motion (and at least near_shortfall_m), the fine grid's ring arcs have pulled the match "
+       "back towards the reference scans, and the pyramid's pose is taken (flag 256). Saves "
+       "starts at speed on the 1 m-grid pose; where the two agree the fine match stands. "
+       "0 = no check.",
+       "", 0, 1},
+      {"odometry", "near_shortfall_m", CNDT_REF(odometry.near_shortfall_m),
+       "The least shortfall near_shortfall_fraction acts on (the pyramid's pose is good to a "
+       "few centimetres).",
+       "m", 0, 10},
       {"odometry", "scan_cell_m", CNDT_REF(odometry.scan_cell_m),
        "Downsampling of the scan being matched: the cell centroids are the points matched. "
        "Cells as large as the voxels make the score ripple along every plane (the centroids of "

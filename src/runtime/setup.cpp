@@ -82,6 +82,8 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.eta = od.eta;
   o.fine_reach = od.fine_reach_m;
   o.pyramid_while_near = od.pyramid_while_near;
+  o.near_shortfall_fraction = od.near_shortfall_fraction;
+  o.near_shortfall = od.near_shortfall_m;
   o.scan_cell = od.scan_cell_m;
   o.map_cell = od.map_cell_m;
   o.min_range = od.min_range_m;

@@ -400,6 +400,16 @@ bool ConsensusOdometry::beyond_reach(const core::Pose6& a, const core::Pose6& b)
   return !(moved <= options_.fine_reach);
 }
 
+bool ConsensusOdometry::short_of_pyramid(const core::Pose6& pose) const {
+  const Eigen::Vector3d from = prev_pose_.translation();
+  const Eigen::Vector3d pyramid = core::to_isometry(pyramid_pose_).translation() - from;
+  const double moved = pyramid.norm();
+  if (!(moved > 0.0)) return false;
+  const double along = (core::to_isometry(pose).translation() - from).dot(pyramid) / moved;
+  return moved - along >
+         std::max(options_.near_shortfall, options_.near_shortfall_fraction * moved);
+}
+
 bool ConsensusOdometry::reference_near(const core::Pose6& pose) const {
   const Eigen::Isometry3d at = core::to_isometry(pose);
   for (std::size_t i = 0; i < in_grids_; ++i) {
@@ -445,6 +455,13 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
       r = ndt::newton_solve(grid_, test_, coarse.pose, options_.fine, nullptr, &lookup_cache_,
                             scan_motion(), &prior_);
     }
+  }
+  if (near_ && (res.flags & kOdomPyramidOnly) == 0 && short_of_pyramid(r.pose)) {
+    // Pulled back towards the reference scans: the pyramid's pose, as with pyramid_while_near.
+    res.fine_iterations += r.iterations;
+    res.flags |= kOdomPyramidOnly;
+    r = ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,
+                          scan_motion(), &prior_);
   }
   res.fine_iterations += r.iterations;
   res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
@@ -580,10 +597,11 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       x0 = search_start(x0, predicted.translation() - prev_pose_.translation(), along);
     }
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
-    if (options_.pyramid_while_near && options_.reference == Reference::kLocalMap &&
-        !pyramid_.empty() && reference_near(x0)) {
-      res.flags |= kOdomPyramidOnly;  // match() reads it
-    }
+    near_ = options_.reference == Reference::kLocalMap && !pyramid_.empty() &&
+            (options_.pyramid_while_near || options_.near_shortfall_fraction > 0.0) &&
+            reference_near(x0);
+    pyramid_pose_ = x0;
+    if (near_ && options_.pyramid_while_near) res.flags |= kOdomPyramidOnly;  // match() reads it
     bool converged = false;
     int passes = 1 + options_.deskew_refinements;
     for (int pass = 0; pass < passes; ++pass) {

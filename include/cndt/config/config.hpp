@@ -38,6 +38,8 @@ struct Config {
     double eta = 0.7;
     double fine_reach_m = 0.125;
     bool pyramid_while_near = false;
+    double near_shortfall_fraction = 0.2;
+    double near_shortfall_m = 0.02;
     double scan_cell_m = 0.25;
     double map_cell_m = 0.1;
     double min_range_m = 1.0;

@@ -127,6 +127,17 @@ struct OdometryOptions {
   /// near"); off by default, as without surface patches it costs the consensus mode on a
   /// 600 rpm campus drive. Turn both on together.
   bool pyramid_while_near = false;
+  /// While every scan in the local map lies within map_admit_distance of the pyramid's pose (as
+  /// for pyramid_while_near), the fine grid's ring arcs may pull the coarse and fine matches
+  /// back towards the reference scans: the match then moves the sensor less far from the
+  /// previous pose than the pyramid did. When the match's motion, measured along the pyramid's,
+  /// falls short of the pyramid's motion by more than near_shortfall_fraction of it and at
+  /// least near_shortfall (m), the pyramid's pose is refined on the finest pyramid grid instead
+  /// and flagged kOdomPyramidOnly. 0 = no check. A campus drive at 4 m/s (0.4 m per revolution)
+  /// whose first fine matches landed at 0.05 m keeps the pyramid's 0.4 m; where the two agree
+  /// the fine match stands (docs/odometry.md, "Pyramid while near").
+  double near_shortfall_fraction = 0.2;
+  double near_shortfall = 0.02;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
   ndt::NewtonOptions pyramid{.max_iterations = 10,
                              .translation_eps = 5e-3,
@@ -180,7 +191,8 @@ enum OdometryFlags : std::uint32_t {
   kOdomRematched = 1u << 6,  ///< matched again from the prediction (see max_acceleration)
   /// The fine match left the coarse pose by more than fine_reach: matched again without the cut.
   kOdomFineBeyondReach = 1u << 7,
-  /// Matched on the finest pyramid grid alone: every reference scan was near (pyramid_while_near).
+  /// Matched on the finest pyramid grid alone: every reference scan was near, and
+  /// pyramid_while_near is on or the match fell short of the pyramid (near_shortfall_fraction).
   kOdomPyramidOnly = 1u << 8,
 };
 
@@ -275,6 +287,8 @@ class ConsensusOdometry {
   bool match(const core::Pose6& x0, OdometryResult& res);
   // Whether every scan in the reference grids lies within map_admit_distance of `pose`.
   [[nodiscard]] bool reference_near(const core::Pose6& pose) const;
+  // Whether the match at `pose` fell short of the pyramid's motion (near_shortfall_fraction).
+  [[nodiscard]] bool short_of_pyramid(const core::Pose6& pose) const;
   // Whether b lies farther than fine_reach from a (a turn counted at the scan's RMS range).
   [[nodiscard]] bool beyond_reach(const core::Pose6& a, const core::Pose6& b) const;
   double consensus_at(const core::Pose6& x, std::vector<double>& cv);
@@ -289,15 +303,17 @@ class ConsensusOdometry {
   ndt::LookupCache lookup_cache_;
   ndt::ResidualAccumulator residual_accumulator_;
   Downsampler map_sampler_, scan_sampler_;
-  std::vector<TimedPoint> raw_;                // in range, sensor frame
-  std::vector<TimedPoint> map_src_;            // raw_ at map_cell
-  std::vector<TimedPoint> scan_src_;           // map_src_ at scan_cell
-  std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
-  std::vector<double> lever_;                  // per test_ point: its ndt::ScanMotion lever
-  double rms_range_ = 0.0;                     // of scan_src_, in the sensor frame
-  ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for (deskew_for)
-  bool solve_motion_ = false;                  // matches solve the scan's motion (deskew)
-  double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
+  std::vector<TimedPoint> raw_;        // in range, sensor frame
+  std::vector<TimedPoint> map_src_;    // raw_ at map_cell
+  std::vector<TimedPoint> scan_src_;   // map_src_ at scan_cell
+  std::vector<Eigen::Vector3d> test_;  // scan_src_ deskewed: matched
+  std::vector<double> lever_;          // per test_ point: its ndt::ScanMotion lever
+  double rms_range_ = 0.0;             // of scan_src_, in the sensor frame
+  ndt::ScanMotion scan_motion_;        // base: the pose test_ was deskewed for (deskew_for)
+  bool solve_motion_ = false;          // matches solve the scan's motion (deskew)
+  bool near_ = false;  // every reference scan lies near the pyramid's pose (reference_near)
+  core::Pose6 pyramid_pose_ = core::Pose6::Zero();  // the pyramid's pose of this scan
+  double period_s_ = 0.1, to_period_ = 1.0;         // this scan's period; period over time step
   std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
   std::vector<Eigen::Vector3d> stamp_points_;  // deskew_to_mid_scan: cv_points_ at the stamp
   Eigen::Isometry3d test_motion_ = Eigen::Isometry3d::Identity();    // last deskew_for motion
