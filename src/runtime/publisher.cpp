@@ -30,7 +30,8 @@ output::PoseMessage make_pose_message(const slam::OdometryResult& r, const Eigen
   } else if ((r.flags & slam::kOdomFirstScan) != 0) {
     m.status = output::PoseStatus::kValid;  // the origin, by definition
   } else if (m.cm < options.degraded_below_cm ||
-             (r.flags & (slam::kOdomNotConverged | slam::kOdomRematched)) != 0) {
+             (r.flags &
+              (slam::kOdomNotConverged | slam::kOdomRematched | slam::kOdomShortOfPyramid)) != 0) {
     m.status = output::PoseStatus::kDegraded;
   } else {
     m.status = output::PoseStatus::kValid;

@@ -459,7 +459,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
   if (near_ && (res.flags & kOdomPyramidOnly) == 0 && short_of_pyramid(r.pose)) {
     // Pulled back towards the reference scans: the pyramid's pose, as with pyramid_while_near.
     res.fine_iterations += r.iterations;
-    res.flags |= kOdomPyramidOnly;
+    res.flags |= kOdomPyramidOnly | kOdomShortOfPyramid;
     r = ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,
                           scan_motion(), &prior_);
   }

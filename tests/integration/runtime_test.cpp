@@ -112,6 +112,8 @@ TEST(PosePublisher, StatusFollowsTheOdometryFlagsAndCm) {
   EXPECT_EQ(status(0, 0.1), PoseStatus::kDegraded);
   EXPECT_EQ(status(slam::kOdomNotConverged, 0.5), PoseStatus::kDegraded);
   EXPECT_EQ(status(slam::kOdomRematched, 0.5), PoseStatus::kDegraded);
+  EXPECT_EQ(status(slam::kOdomPyramidOnly | slam::kOdomShortOfPyramid, 0.9), PoseStatus::kDegraded);
+  EXPECT_EQ(status(slam::kOdomPyramidOnly, 0.9), PoseStatus::kValid);
   EXPECT_EQ(status(slam::kOdomDegenerate, 0.0), PoseStatus::kLost);
   EXPECT_EQ(status(slam::kOdomTooFewPoints, 0.0), PoseStatus::kLost);
   EXPECT_EQ(status(slam::kOdomFirstScan, 0.0), PoseStatus::kValid);

@@ -194,6 +194,10 @@ enum OdometryFlags : std::uint32_t {
   /// Matched on the finest pyramid grid alone: every reference scan was near, and
   /// pyramid_while_near is on or the match fell short of the pyramid (near_shortfall_fraction).
   kOdomPyramidOnly = 1u << 8,
+  /// The coarse and fine matches fell short of the pyramid's motion while every reference scan
+  /// was near (near_shortfall_fraction): the pyramid's pose, with kOdomPyramidOnly. Published
+  /// as degraded: the fine grid disagreed with it.
+  kOdomShortOfPyramid = 1u << 9,
 };
 
 struct OdometryResult {
