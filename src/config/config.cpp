@@ -152,9 +152,9 @@ const std::vector<Field>& fields() {
        "pose (as for pyramid_while_near): when the coarse and fine matches move the sensor "
        "less far than the pyramid did, short by more than this fraction of the pyramid's "
        "motion (and at least near_shortfall_m), the fine grid's ring arcs have pulled the match "
-       "back towards the reference scans, and the pyramid's pose is taken (flag 256). Saves "
-       "starts at speed on the 1 m-grid pose; where the two agree the fine match stands. "
-       "0 = no check.",
+       "back towards the reference scans, and the pyramid's pose is taken (flags 256 and 512, "
+       "published as degraded) unless the fine grid finds the scene degenerate. Saves starts "
+       "at speed; where the two agree the fine match stands. 0 = no check.",
        "", 0, 1},
       {"odometry", "near_shortfall_m", CNDT_REF(odometry.near_shortfall_m),
        "The least shortfall near_shortfall_fraction acts on (the pyramid's pose is good to a "
