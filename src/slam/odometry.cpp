@@ -456,12 +456,12 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
                             scan_motion(), &prior_);
     }
   }
-  // Where the fine grid finds the scene degenerate neither pose is fixed along the free
-  // direction, and the match stays (to be flagged) rather than the 1 m grid's pose, whose
+  // Pulled back towards the reference scans: the pyramid's pose, as with pyramid_while_near.
+  // Not where the fine grid finds the scene degenerate: there neither pose is fixed along the
+  // free direction, and the match stays (to be flagged) rather than the 1 m grid's pose, whose
   // blurred Gaussians hide that.
   if (near_ && (res.flags & kOdomPyramidOnly) == 0 && short_of_pyramid(r.pose) &&
       translation_conditioning(r.hessian) >= options_.degenerate_conditioning) {
-    // Pulled back towards the reference scans: the pyramid's pose, as with pyramid_while_near.
     res.fine_iterations += r.iterations;
     res.flags |= kOdomPyramidOnly | kOdomShortOfPyramid;
     r = ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,

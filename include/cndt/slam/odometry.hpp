@@ -135,9 +135,9 @@ struct OdometryOptions {
   /// least near_shortfall (m), the pyramid's pose is refined on the finest pyramid grid instead
   /// and flagged kOdomPyramidOnly | kOdomShortOfPyramid, unless the fine match's Hessian fails
   /// the degeneracy test (then neither pose is fixed, and the match stays, flagged). 0 = no
-  /// check. A campus drive at 4 m/s (0.4 m per revolution)
-  /// whose first fine matches landed at 0.05 m keeps the pyramid's 0.4 m; where the two agree
-  /// the fine match stands (docs/odometry.md, "Pyramid while near").
+  /// check. A campus drive at 4 m/s (0.4 m per revolution) whose first fine matches landed at
+  /// 0.05 m keeps the pyramid's 0.4 m; where the two agree the fine match stands
+  /// (docs/odometry.md, "Pyramid while near").
   double near_shortfall_fraction = 0.2;
   double near_shortfall = 0.02;
   /// The coarse grids' solves: one voxel per point, stopped at 5 mm / 0.05 deg steps.
