@@ -400,9 +400,10 @@ bool ConsensusOdometry::beyond_reach(const core::Pose6& a, const core::Pose6& b)
   return !(moved <= options_.fine_reach);
 }
 
-bool ConsensusOdometry::short_of_pyramid(const core::Pose6& pose) const {
+bool ConsensusOdometry::short_of_pyramid(const core::Pose6& pose,
+                                         const core::Pose6& pyramid_pose) const {
   const Eigen::Vector3d from = prev_pose_.translation();
-  const Eigen::Vector3d pyramid = core::to_isometry(pyramid_pose_).translation() - from;
+  const Eigen::Vector3d pyramid = core::to_isometry(pyramid_pose).translation() - from;
   const double moved = pyramid.norm();
   if (!(moved > 0.0)) return false;
   const double along = (core::to_isometry(pose).translation() - from).dot(pyramid) / moved;
@@ -421,11 +422,15 @@ bool ConsensusOdometry::reference_near(const core::Pose6& pose) const {
   return in_grids_ > 0;
 }
 
-bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
+bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res,
+                              const core::Pose6* near_pyramid) {
+  auto on_pyramid = [&] {
+    return ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,
+                             scan_motion(), &prior_);
+  };
   ndt::NewtonResult r;
   if ((res.flags & kOdomPyramidOnly) != 0) {
-    r = ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,
-                          scan_motion(), &prior_);
+    r = on_pyramid();
   } else if (options_.mode == OdometryMode::kNaive) {
     r = ndt::newton_solve(grid_, test_, x0, options_.naive, nullptr, &lookup_cache_, scan_motion(),
                           &prior_);
@@ -460,12 +465,12 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res) {
   // Not where the fine grid finds the scene degenerate: there neither pose is fixed along the
   // free direction, and the match stays (to be flagged) rather than the 1 m grid's pose, whose
   // blurred Gaussians hide that.
-  if (near_ && (res.flags & kOdomPyramidOnly) == 0 && short_of_pyramid(r.pose) &&
+  if (near_pyramid != nullptr && (res.flags & kOdomPyramidOnly) == 0 &&
+      short_of_pyramid(r.pose, *near_pyramid) &&
       translation_conditioning(r.hessian) >= options_.degenerate_conditioning) {
     res.fine_iterations += r.iterations;
     res.flags |= kOdomPyramidOnly | kOdomShortOfPyramid;
-    r = ndt::newton_solve(pyramid_.back(), test_, x0, options_.pyramid, nullptr, &lookup_cache_,
-                          scan_motion(), &prior_);
+    r = on_pyramid();
   }
   res.fine_iterations += r.iterations;
   res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
@@ -601,15 +606,18 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       x0 = search_start(x0, predicted.translation() - prev_pose_.translation(), along);
     }
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
-    near_ = options_.reference == Reference::kLocalMap && !pyramid_.empty() &&
-            (options_.pyramid_while_near || options_.near_shortfall_fraction > 0.0) &&
-            reference_near(x0);
-    pyramid_pose_ = x0;
-    if (near_ && options_.pyramid_while_near) res.flags |= kOdomPyramidOnly;  // match() reads it
+    // While every reference scan is near, the pyramid's pose: the match either takes it
+    // (pyramid_while_near; match() reads the flag) or is checked against it.
+    const bool near = options_.reference == Reference::kLocalMap && !pyramid_.empty() &&
+                      (options_.pyramid_while_near || options_.near_shortfall_fraction > 0.0) &&
+                      reference_near(x0);
+    const core::Pose6 pyramid_pose = x0;
+    const core::Pose6* near_pyramid = near ? &pyramid_pose : nullptr;
+    if (near && options_.pyramid_while_near) res.flags |= kOdomPyramidOnly;
     bool converged = false;
     int passes = 1 + options_.deskew_refinements;
     for (int pass = 0; pass < passes; ++pass) {
-      converged = match(x0, res);
+      converged = match(x0, res, near_pyramid);
       const Eigen::Isometry3d estimated = prev_pose_.inverse() * res.pose;
       if (newest_unskewed_ && converged) {
         // The first reference scan went in undistorted, and so did this one: the match measured
@@ -651,7 +659,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
         (res.pose.translation() - predicted.translation()).norm() > max_jump) {
       res.flags |= kOdomRematched;
       deskew_for(predicted_deskew, core::to_pose6(predicted));
-      converged = match(core::to_pose6(predicted), res);
+      converged = match(core::to_pose6(predicted), res, near_pyramid);
     }
     if (!converged) res.flags |= kOdomNotConverged;
     have_motion_prior_ = converged;

@@ -289,12 +289,16 @@ class ConsensusOdometry {
   void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
   // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res. With
-  // kOdomPyramidOnly in res.flags, a match on the finest pyramid grid instead.
-  bool match(const core::Pose6& x0, OdometryResult& res);
+  // kOdomPyramidOnly in res.flags, a match on the finest pyramid grid instead. With
+  // near_pyramid (every reference scan near the pyramid's pose), a match falling short of that
+  // pose's motion is replaced by the pyramid grid's (near_shortfall_fraction).
+  bool match(const core::Pose6& x0, OdometryResult& res, const core::Pose6* near_pyramid);
   // Whether every scan in the reference grids lies within map_admit_distance of `pose`.
   [[nodiscard]] bool reference_near(const core::Pose6& pose) const;
-  // Whether the match at `pose` fell short of the pyramid's motion (near_shortfall_fraction).
-  [[nodiscard]] bool short_of_pyramid(const core::Pose6& pose) const;
+  // Whether the match at `pose` fell short of the pyramid's motion to `pyramid_pose` from the
+  // previous pose (near_shortfall_fraction).
+  [[nodiscard]] bool short_of_pyramid(const core::Pose6& pose,
+                                      const core::Pose6& pyramid_pose) const;
   // Whether b lies farther than fine_reach from a (a turn counted at the scan's RMS range).
   [[nodiscard]] bool beyond_reach(const core::Pose6& a, const core::Pose6& b) const;
   double consensus_at(const core::Pose6& x, std::vector<double>& cv);
@@ -309,17 +313,15 @@ class ConsensusOdometry {
   ndt::LookupCache lookup_cache_;
   ndt::ResidualAccumulator residual_accumulator_;
   Downsampler map_sampler_, scan_sampler_;
-  std::vector<TimedPoint> raw_;        // in range, sensor frame
-  std::vector<TimedPoint> map_src_;    // raw_ at map_cell
-  std::vector<TimedPoint> scan_src_;   // map_src_ at scan_cell
-  std::vector<Eigen::Vector3d> test_;  // scan_src_ deskewed: matched
-  std::vector<double> lever_;          // per test_ point: its ndt::ScanMotion lever
-  double rms_range_ = 0.0;             // of scan_src_, in the sensor frame
-  ndt::ScanMotion scan_motion_;        // base: the pose test_ was deskewed for (deskew_for)
-  bool solve_motion_ = false;          // matches solve the scan's motion (deskew)
-  bool near_ = false;  // every reference scan lies near the pyramid's pose (reference_near)
-  core::Pose6 pyramid_pose_ = core::Pose6::Zero();  // the pyramid's pose of this scan
-  double period_s_ = 0.1, to_period_ = 1.0;         // this scan's period; period over time step
+  std::vector<TimedPoint> raw_;                // in range, sensor frame
+  std::vector<TimedPoint> map_src_;            // raw_ at map_cell
+  std::vector<TimedPoint> scan_src_;           // map_src_ at scan_cell
+  std::vector<Eigen::Vector3d> test_;          // scan_src_ deskewed: matched
+  std::vector<double> lever_;                  // per test_ point: its ndt::ScanMotion lever
+  double rms_range_ = 0.0;                     // of scan_src_, in the sensor frame
+  ndt::ScanMotion scan_motion_;                // base: the pose test_ was deskewed for (deskew_for)
+  bool solve_motion_ = false;                  // matches solve the scan's motion (deskew)
+  double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
   std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
   std::vector<Eigen::Vector3d> stamp_points_;  // deskew_to_mid_scan: cv_points_ at the stamp
   Eigen::Isometry3d test_motion_ = Eigen::Isometry3d::Identity();    // last deskew_for motion
