@@ -222,13 +222,22 @@ const std::vector<Field>& fields() {
        "instead of the "
        "ring arcs a scan left in it, which move with the sensor and pull scans to line up their "
        "rings. With pyramid_while_near: a third less ATE, half the frame error and far fewer "
-       "lost starts on simulated drives, but consensus and naive then level (false = the "
-       "paper's voxel Gaussians, eq 4; docs/odometry.md)."},
+       "lost starts on simulated drives, but consensus and naive then level; for level planes "
+       "only see patch_max_tilt_deg (false = the paper's voxel Gaussians, eq 4; "
+       "docs/odometry.md)."},
       {"odometry", "patches_after_scans", CNDT_REF(odometry.patches_after_scans),
-       "Surface patches start once the local map holds this many scans: a plane judged from one "
-       "to three scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs, and campus "
-       "drives at 1200 rpm were lost with patches from the first scan (docs/odometry.md).",
+       "Surface patches start once the local map holds this many scans: a plane judged from a "
+       "few scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs; campus drives were "
+       "lost with patches from the first scan, and with level patches from the fourth (8 "
+       "there; docs/odometry.md, \"Level patches\").",
        "scans", 0, 1000},
+      {"odometry", "patch_max_tilt_deg", CNDT_REF(odometry.patch_max_tilt_deg),
+       "With surface_patches, patches only for planes whose normal is within this angle of the "
+       "odometry frame's z (the first scan's): 25 keeps them to the ground and other level "
+       "surfaces, whose ring arcs tilt the start and lift the height, while walls and movers' "
+       "sides keep the paper's Gaussians; 90 = every plane (docs/odometry.md, \"Level "
+       "patches\").",
+       "deg", 0, 90},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
        "stays at the stamp). Halves RTE and RPE on 30 s simulated drives but drifts more on a "

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <numbers>
 
 #include "cndt/core/resident.hpp"
 
@@ -25,7 +26,11 @@ VoxelKey face_neighbour(const VoxelKey& key, int i) {
 }  // namespace
 
 VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
-    : options_(options), inv_size_(1.0 / options.voxel_size) {
+    : options_(options),
+      inv_size_(1.0 / options.voxel_size),
+      patch_min_normal_z_(options.patch_max_tilt_deg >= 90.0
+                              ? -1.0
+                              : std::cos(options.patch_max_tilt_deg * std::numbers::pi / 180.0)) {
   // Versions are unique across grids (the high half numbers the grid), so that a lookup cache
   // never mistakes a new grid at a reused address for the one it was filled from.
   static std::atomic<std::uint64_t> grids{0};
@@ -238,7 +243,8 @@ void VoxelGrid::derive(std::size_t index) noexcept {
   const Eigen::Matrix3d cov = v.covariance();      // eq 4, covariance
   Eigen::Matrix3d A;
   Eigen::Vector3d normal;
-  if (options_.surface_patches && neighbourhood_plane(v.key, normal)) {
+  if (options_.surface_patches && neighbourhood_plane(v.key, normal) &&
+      std::abs(normal.z()) >= patch_min_normal_z_) {
     A = surface_patch(cov, normal);
   } else {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;

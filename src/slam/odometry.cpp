@@ -68,7 +68,8 @@ std::size_t cv_dof_capacity(const OdometryOptions& o) {
 
 ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
     : options_(o),
-      grid_({o.voxel_size, o.max_map_voxels, 5, 0.001, o.drop_ring_arcs, o.surface_patches}),
+      grid_({o.voxel_size, o.max_map_voxels, 5, 0.001, o.drop_ring_arcs, o.surface_patches,
+             o.patch_max_tilt_deg}),
       chi2_(cv_dof_capacity(o)),
       lookup_cache_(o.max_scan_points),
       residual_accumulator_(o.max_scan_points),

@@ -56,6 +56,7 @@ struct Config {
     double prior_weight = 0.003;
     bool surface_patches = false;
     std::int64_t patches_after_scans = 4;
+    double patch_max_tilt_deg = 90.0;
     bool deskew_to_mid_scan = false;
     std::int64_t guess_jitter_seed = 0;
   } odometry;

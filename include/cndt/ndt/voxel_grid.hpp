@@ -83,6 +83,10 @@ struct VoxelGridOptions {
   /// in one voxel of a surface is where its rings crossed it (an arc, or stripes), which moves
   /// with the sensor; matched as such, scans align their rings instead of their surfaces.
   bool surface_patches = false;
+  /// Surface patches only for planes whose normal is within this angle of the grid's z axis
+  /// (level surfaces: ground, floors, roofs); steeper planes keep eq 4's Gaussian. 90: every
+  /// plane.
+  double patch_max_tilt_deg = 90.0;
   /// The voxel array resident from the start (core/resident.hpp): for grids filled on a
   /// real-time thread. Otherwise reserved only, and mapped in as it fills.
   bool resident = true;
@@ -223,6 +227,7 @@ class VoxelGrid {
 
   VoxelGridOptions options_;
   double inv_size_;
+  double patch_min_normal_z_;        // cos(patch_max_tilt_deg); -1 when every plane may be one
   std::vector<Voxel> voxels_;        // capacity reserved once
   std::vector<Gaussian> gaussians_;  // one per voxel, the same capacity
   // Open addressing with linear probing. All slots for the capacity are allocated once; only

@@ -96,12 +96,18 @@ struct OdometryOptions {
   /// Reference voxels in a planar neighbourhood are matched as pieces of the plane
   /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"), once the
   /// local map holds patches_after_scans scans: a plane judged from the sums of one to three
-  /// scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs, and campus drives at
-  /// 1200 rpm were lost with patches from the first scan. Off by default: the paper's
-  /// Gaussians (eq 4). With it and pyramid_while_near both modes are more accurate on every
-  /// set measured, and level with each other.
+  /// scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs, and campus drives were
+  /// lost with patches from the first scan. Off by default: the paper's Gaussians (eq 4). With
+  /// it and pyramid_while_near both modes are more accurate on most sets measured; level
+  /// patches alone (patch_max_tilt_deg 25, from the eighth scan) take out most of the start's
+  /// tilt (docs/odometry.md, "Level patches").
   bool surface_patches = false;
   std::size_t patches_after_scans = 4;  ///< local-map scans before surface patches start
+  /// With surface_patches, patches only for level planes (normal within this angle of the
+  /// odometry frame's z, the first scan's): the ground's ring arcs, which tilt the start,
+  /// become patches, while walls and the flat sides of movers keep the paper's Gaussians (and
+  /// with them the Cv cut's lead over naive). 90: every plane.
+  double patch_max_tilt_deg = 90.0;
   /// Coarser grids of the same reference the scan is matched on first, coarsest first. Their
   /// Gaussians are blurred (eigenvalues floored at pyramid_eigen_floor x the largest) and voxels
   /// holding a single ring arc get none, so they pull from much farther than the fine grid,

@@ -790,6 +790,47 @@ TEST(VoxelGrid, SurfacePatchesTakeTheRingsOutOfAFloor) {
   }
 }
 
+// With patch_max_tilt_deg, only level planes become patches: the same rings on the floor lose
+// their pull, and stood up as a wall (normal along y) they keep eq 4's Gaussians and the pull.
+TEST(VoxelGrid, LevelPatchesLeaveSteepPlanesTheirGaussians) {
+  auto rings = [](double x0, std::vector<Eigen::Vector3d>& out) {
+    for (double elevation_deg = -15.0; elevation_deg <= -3.0; elevation_deg += 2.0) {
+      const double r = 1.9 / std::tan(-elevation_deg * 3.14159265358979323846 / 180.0);
+      for (int k = 0; k < 1800; ++k) {
+        const double a = 2.0 * 3.14159265358979323846 * k / 1800.0;
+        out.emplace_back(x0 + r * std::cos(a), r * std::sin(a), 0.0);
+      }
+    }
+  };
+  std::vector<Eigen::Vector3d> reference, scan;
+  for (int i = 0; i < 10; ++i) rings(-1.0 * i, reference);
+  rings(0.3, scan);
+  for (const bool wall : {false, true}) {
+    const Eigen::Matrix3d turn =
+        wall ? Eigen::AngleAxisd(3.14159265358979323846 / 2.0, Eigen::Vector3d::UnitX())
+                   .toRotationMatrix()
+             : Eigen::Matrix3d::Identity();
+    VoxelGrid grid({0.5, 100'000, 5, 0.001, false, true, 25.0});
+    for (const auto& p : reference) grid.add(turn * p);
+    grid.finalize();
+    std::vector<Eigen::Vector3d> turned;
+    for (const auto& p : scan) turned.push_back(turn * p);
+    Pose6 stood_still = Pose6::Zero();
+    stood_still(0) = -0.3;
+    const double at_truth =
+        ndt_score(grid, turned, Pose6::Zero(), false, nullptr, Neighbours::kSeven).score;
+    const double standing =
+        ndt_score(grid, turned, stood_still, false, nullptr, Neighbours::kSeven).score;
+    std::printf("%s: score at the true pose %.1f, standing still %.1f\n", wall ? "wall" : "floor",
+                at_truth, standing);
+    if (wall) {
+      EXPECT_LT(standing, 1.5 * at_truth);  // Gaussians: the rings still pull (negative scores)
+    } else {
+      EXPECT_NEAR(standing / at_truth, 1.0, 0.1);  // patches: no pull
+    }
+  }
+}
+
 // Surface patches turned on for a grid that already holds voxels derive those again (the
 // odometry turns them on once its map holds a few scans), and off gives the voxel Gaussians back
 // bit for bit.
