@@ -145,8 +145,9 @@ const std::vector<Field>& fields() {
        "alone (flag 256): the fine grid of a scan taken that near pulls towards zero motion, "
        "its ring arcs lying where the new scan has its own. Helps platforms that start slowly "
        "or from rest and sensors at 900-1200 rpm (under 0.5 m per revolution). Off by default: "
-       "alone it costs the consensus mode on a 600 rpm campus drive; with surface_patches "
-       "(turn both on) it does not (docs/odometry.md)."},
+       "alone it costs the consensus mode on a 600 rpm campus drive; with surface_patches on "
+       "every plane (turn both on) it does not; with level patches (patch_max_tilt_deg = 25) "
+       "it loses a campus start at 1200 rpm (docs/odometry.md)."},
       {"odometry", "near_shortfall_fraction", CNDT_REF(odometry.near_shortfall_fraction),
        "While every scan in the local map lies within map_admit_distance_m of the pyramid's "
        "pose (as for pyramid_while_near): when the coarse and fine matches move the sensor "
