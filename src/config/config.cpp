@@ -146,8 +146,8 @@ const std::vector<Field>& fields() {
        "its ring arcs lying where the new scan has its own. Helps platforms that start slowly "
        "or from rest and sensors at 900-1200 rpm (under 0.5 m per revolution). Off by default: "
        "alone it costs the consensus mode on a 600 rpm campus drive; with surface_patches on "
-       "every plane (turn both on) it does not; with level patches (patch_max_tilt_deg = 25) "
-       "it loses a campus start at 1200 rpm (docs/odometry.md)."},
+       "every plane (patch_max_tilt_deg = 90, patches_after_scans = 4) it does not "
+       "(docs/odometry.md)."},
       {"odometry", "near_shortfall_fraction", CNDT_REF(odometry.near_shortfall_fraction),
        "While every scan in the local map lies within map_admit_distance_m of the pyramid's "
        "pose (as for pyramid_while_near): when the coarse and fine matches move the sensor "
@@ -222,15 +222,14 @@ const std::vector<Field>& fields() {
        "(its own spread along the normal, along the plane at least the voxel size squared) "
        "instead of the "
        "ring arcs a scan left in it, which move with the sensor and pull scans to line up their "
-       "rings. With pyramid_while_near: a third less ATE, half the frame error and far fewer "
-       "lost starts on simulated drives, but consensus and naive then level; for level planes "
-       "only see patch_max_tilt_deg (false = the paper's voxel Gaussians, eq 4; "
-       "docs/odometry.md)."},
+       "rings. On by default for level planes only (patch_max_tilt_deg, patches_clean_scans): "
+       "the ground's ring arcs otherwise tilt the estimate and lift its height. false = the "
+       "paper's voxel Gaussians everywhere (eq 4; docs/odometry.md, \"Level patches\")."},
       {"odometry", "patches_after_scans", CNDT_REF(odometry.patches_after_scans),
        "Surface patches start once the local map holds this many scans: a plane judged from a "
        "few scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs; campus drives were "
-       "lost with patches from the first scan, and with level patches from the fourth (8 "
-       "there; docs/odometry.md, \"Level patches\").",
+       "lost with patches from the first scan, and with level patches from the fourth "
+       "(docs/odometry.md, \"Level patches\"; 4 with patch_max_tilt_deg = 90).",
        "scans", 0, 1000},
       {"odometry", "patch_max_tilt_deg", CNDT_REF(odometry.patch_max_tilt_deg),
        "With surface_patches, patches only for planes whose normal is within this angle of the "
@@ -239,6 +238,13 @@ const std::vector<Field>& fields() {
        "sides keep the paper's Gaussians; 90 = every plane (docs/odometry.md, \"Level "
        "patches\").",
        "deg", 0, 90},
+      {"odometry", "patches_clean_scans", CNDT_REF(odometry.patches_clean_scans),
+       "Surface patches only after this many matches in a row not flagged degenerate; a match "
+       "degenerate with patches is matched again without them (flag 1024) and they stay off "
+       "until then: where the rest of the scene leaves the position free, the texture the rings "
+       "give the ground is what holds it (0 = patches regardless; docs/odometry.md, \"Level "
+       "patches\").",
+       "scans", 0, 100000},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
        "stays at the stamp). Halves RTE and RPE on 30 s simulated drives but drifts more on a "

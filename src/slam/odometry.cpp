@@ -209,9 +209,12 @@ void ConsensusOdometry::finalize_grids() {
     g.finalize();
     if (g.refused_points() > 0 || g.empty_voxels() * 4 > g.size()) g.compact();
   };
-  // Surface patches once the local map holds enough scans to judge a plane by.
+  // Surface patches once the local map holds enough scans to judge a plane by, and while the
+  // matches are not flagged degenerate: where nothing else fixes the position, the texture the
+  // rings give a level surface is what holds it.
   if (options_.surface_patches)
-    grid_.set_surface_patches(in_grids_ >= options_.patches_after_scans);
+    grid_.set_surface_patches(in_grids_ >= options_.patches_after_scans &&
+                              clean_run_ >= options_.patches_clean_scans);
   finalize(grid_);
   for (ndt::VoxelGrid& g : pyramid_) finalize(g);
 }
@@ -662,6 +665,19 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
       deskew_for(predicted_deskew, core::to_pose6(predicted));
       converged = match(core::to_pose6(predicted), res, near_pyramid);
     }
+    // Surface patches leave the position along a level surface to the rest of the scene. Where
+    // that is too little (the match degenerate), the scan is matched again from its start with
+    // the plain Gaussians, whose ring texture holds it; the patches stay off until
+    // patches_clean_scans matches in a row are not degenerate.
+    if (grid_.options().surface_patches && options_.patches_clean_scans > 0 &&
+        !(res.conditioning >= options_.degenerate_conditioning)) {
+      grid_.set_surface_patches(false);
+      grid_.finalize();
+      clean_run_ = 0;
+      res.flags |= kOdomWithoutPatches;
+      deskew_at(core::to_isometry(x0));
+      converged = match(x0, res, near_pyramid);
+    }
     if (!converged) res.flags |= kOdomNotConverged;
     have_motion_prior_ = converged;
     if (!finite(res.pose)) {
@@ -690,6 +706,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   // degenerate or not matched may carry a wrong motion, and gating on it would keep it.
   prediction_trusted_ =
       (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomDegenerate | kOdomRematched)) == 0;
+  clean_run_ = (res.flags & kOdomDegenerate) != 0 ? 0 : clean_run_ + 1;
   have_prev2_ = true;
   newest_unskewed_ = false;
   reference_due_ = true;  // at prev_pose_, set next

@@ -54,9 +54,10 @@ struct Config {
     double max_acceleration_mps2 = 10.0;
     double max_speed_mps = 40.0;
     double prior_weight = 0.003;
-    bool surface_patches = false;
-    std::int64_t patches_after_scans = 4;
-    double patch_max_tilt_deg = 90.0;
+    bool surface_patches = true;
+    std::int64_t patches_after_scans = 8;
+    double patch_max_tilt_deg = 25.0;
+    std::int64_t patches_clean_scans = 10;
     bool deskew_to_mid_scan = false;
     std::int64_t guess_jitter_seed = 0;
   } odometry;

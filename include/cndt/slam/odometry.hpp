@@ -97,17 +97,23 @@ struct OdometryOptions {
   /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"), once the
   /// local map holds patches_after_scans scans: a plane judged from the sums of one to three
   /// scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs, and campus drives were
-  /// lost with patches from the first scan. Off by default: the paper's Gaussians (eq 4). With
-  /// it and pyramid_while_near both modes are more accurate on most sets measured; level
-  /// patches alone (patch_max_tilt_deg 25, from the eighth scan) take out most of the start's
-  /// tilt (docs/odometry.md, "Level patches").
-  bool surface_patches = false;
-  std::size_t patches_after_scans = 4;  ///< local-map scans before surface patches start
+  /// lost with patches from the first scan. On by default for level planes only, from the
+  /// eighth scan and while the matches are not degenerate (patch_max_tilt_deg,
+  /// patches_clean_scans; docs/odometry.md, "Level patches"): they take out most of the tilt
+  /// the ground's ring arcs give. false: the paper's Gaussians (eq 4) everywhere.
+  bool surface_patches = true;
+  std::size_t patches_after_scans = 8;  ///< local-map scans before surface patches start
   /// With surface_patches, patches only for level planes (normal within this angle of the
   /// odometry frame's z, the first scan's): the ground's ring arcs, which tilt the start,
   /// become patches, while walls and the flat sides of movers keep the paper's Gaussians (and
   /// with them the Cv cut's lead over naive). 90: every plane.
-  double patch_max_tilt_deg = 90.0;
+  double patch_max_tilt_deg = 25.0;
+  /// Surface patches only after this many matches in a row not flagged degenerate. A match
+  /// degenerate with patches is matched again without them (kOdomWithoutPatches), and they stay
+  /// off (the map's voxels keep eq 4's Gaussians) until then. Where the rest of the scene leaves
+  /// the position free (sparse campus scans at 1200 rpm), the texture the rings give the ground
+  /// is what holds it; with level patches alone such drives were lost. 0: patches regardless.
+  std::size_t patches_clean_scans = 10;
   /// Coarser grids of the same reference the scan is matched on first, coarsest first. Their
   /// Gaussians are blurred (eigenvalues floored at pyramid_eigen_floor x the largest) and voxels
   /// holding a single ring arc get none, so they pull from much farther than the fine grid,
@@ -206,6 +212,9 @@ enum OdometryFlags : std::uint32_t {
   /// was near (near_shortfall_fraction): the pyramid's pose, with kOdomPyramidOnly. Published
   /// as degraded: the fine grid disagreed with it.
   kOdomShortOfPyramid = 1u << 9,
+  /// Degenerate with surface patches in the reference: matched again on eq 4's Gaussians
+  /// (patches_clean_scans).
+  kOdomWithoutPatches = 1u << 10,
 };
 
 struct OdometryResult {
@@ -364,6 +373,7 @@ class ConsensusOdometry {
   // With deskew_to_mid_scan, the poses and motions chained here are those at mid-revolution.
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
+  std::size_t clean_run_ = 0;  // matches since the last one flagged degenerate
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;

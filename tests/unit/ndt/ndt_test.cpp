@@ -748,6 +748,18 @@ TEST(LocalizationConsensus, DegenerateGeometryGivesZero) {
   EXPECT_EQ(localization_consensus(line, cv), 0.0);
 }
 
+// The rings a sensor 1.9 m above a floor leaves on it from x = x0 (seven lasers, 1,800 points
+// each), added to `out`.
+void floor_rings(double x0, std::vector<Eigen::Vector3d>& out) {
+  for (double elevation_deg = -15.0; elevation_deg <= -3.0; elevation_deg += 2.0) {
+    const double r = 1.9 / std::tan(-elevation_deg * 3.14159265358979323846 / 180.0);
+    for (int k = 0; k < 1800; ++k) {
+      const double a = 2.0 * 3.14159265358979323846 * k / 1800.0;
+      out.emplace_back(x0 + r * std::cos(a), r * std::sin(a), 0.0);
+    }
+  }
+}
+
 // A floor as a sensor 1.9 m above it samples it: points on rings of fixed radius, which move
 // with the sensor. The reference holds ten such scans taken 1 m apart (a local map), the scan
 // is taken 0.3 m past the newest. As plain voxel Gaussians the rings are thin arcs, and the
@@ -755,18 +767,9 @@ TEST(LocalizationConsensus, DegenerateGeometryGivesZero) {
 // had stood still) than at its true pose; as surface patches both score alike: the floor then
 // holds height and tilt and nothing along it.
 TEST(VoxelGrid, SurfacePatchesTakeTheRingsOutOfAFloor) {
-  auto rings = [](double x0, std::vector<Eigen::Vector3d>& out) {
-    for (double elevation_deg = -15.0; elevation_deg <= -3.0; elevation_deg += 2.0) {
-      const double r = 1.9 / std::tan(-elevation_deg * 3.14159265358979323846 / 180.0);
-      for (int k = 0; k < 1800; ++k) {
-        const double a = 2.0 * 3.14159265358979323846 * k / 1800.0;
-        out.emplace_back(x0 + r * std::cos(a), r * std::sin(a), 0.0);
-      }
-    }
-  };
   std::vector<Eigen::Vector3d> reference, scan;
-  for (int i = 0; i < 10; ++i) rings(-1.0 * i, reference);
-  rings(0.3, scan);  // in the reference's frame
+  for (int i = 0; i < 10; ++i) floor_rings(-1.0 * i, reference);
+  floor_rings(0.3, scan);  // in the reference's frame
   for (const bool patches : {false, true}) {
     VoxelGrid grid({0.5, 100'000, 5, 0.001, false, patches});
     for (const auto& p : reference) grid.add(p);
@@ -793,18 +796,9 @@ TEST(VoxelGrid, SurfacePatchesTakeTheRingsOutOfAFloor) {
 // With patch_max_tilt_deg, only level planes become patches: the same rings on the floor lose
 // their pull, and stood up as a wall (normal along y) they keep eq 4's Gaussians and the pull.
 TEST(VoxelGrid, LevelPatchesLeaveSteepPlanesTheirGaussians) {
-  auto rings = [](double x0, std::vector<Eigen::Vector3d>& out) {
-    for (double elevation_deg = -15.0; elevation_deg <= -3.0; elevation_deg += 2.0) {
-      const double r = 1.9 / std::tan(-elevation_deg * 3.14159265358979323846 / 180.0);
-      for (int k = 0; k < 1800; ++k) {
-        const double a = 2.0 * 3.14159265358979323846 * k / 1800.0;
-        out.emplace_back(x0 + r * std::cos(a), r * std::sin(a), 0.0);
-      }
-    }
-  };
   std::vector<Eigen::Vector3d> reference, scan;
-  for (int i = 0; i < 10; ++i) rings(-1.0 * i, reference);
-  rings(0.3, scan);
+  for (int i = 0; i < 10; ++i) floor_rings(-1.0 * i, reference);
+  floor_rings(0.3, scan);
   for (const bool wall : {false, true}) {
     const Eigen::Matrix3d turn =
         wall ? Eigen::AngleAxisd(3.14159265358979323846 / 2.0, Eigen::Vector3d::UnitX())
