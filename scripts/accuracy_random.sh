@@ -6,9 +6,9 @@
 # (stops and outages among the settings too; seeds 1000 x SEED on), so that each draw is a set
 # of worlds and settings never tuned on. (Clock steps are left out: the trajectory keeps the
 # sensor's stamps, which `cndt eval` cannot pair across a step back; docs/odometry.md, "Clock
-# jumps".) Replayed in the default mode
-# (other arguments go to `cndt replay`, e.g. --mode naive or --config FILE) and scored by
-# `cndt eval`: one row per drive and the worst ATE, RTE and RPE.
+# jumps".) Replayed in the default mode (other arguments go to `cndt replay`, e.g. --mode naive
+# or --config FILE) and scored by `cndt eval`: one row per drive (ATE, RTE, RRE, RPE, the height
+# error at the end), the worst of each and the median ATE.
 # Usage: scripts/accuracy_random.sh [BUILD_DIR] [OUT_DIR] [--draw SEED:COUNT] [REPLAY_ARGS...]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
