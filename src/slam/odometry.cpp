@@ -470,8 +470,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res,
   // free direction, and the match stays (to be flagged) rather than the 1 m grid's pose, whose
   // blurred Gaussians hide that.
   if (near_pyramid != nullptr && (res.flags & kOdomPyramidOnly) == 0 &&
-      short_of_pyramid(r.pose, *near_pyramid) &&
-      translation_conditioning(r.hessian) >= options_.degenerate_conditioning) {
+      short_of_pyramid(r.pose, *near_pyramid) && !degenerate(translation_conditioning(r.hessian))) {
     res.fine_iterations += r.iterations;
     res.flags |= kOdomPyramidOnly | kOdomShortOfPyramid;
     r = on_pyramid();
@@ -670,7 +669,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     // the plain Gaussians, whose ring texture holds it; the patches stay off until
     // patches_clean_scans matches in a row are not degenerate.
     if (grid_.options().surface_patches && options_.patches_clean_scans > 0 &&
-        !(res.conditioning >= options_.degenerate_conditioning)) {
+        degenerate(res.conditioning)) {
       grid_.set_surface_patches(false);
       grid_.finalize();
       clean_run_ = 0;
@@ -689,7 +688,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     res.cm = consensus_at(core::to_pose6(res.pose), cv_);
     // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
     // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.
-    if (!(res.conditioning >= options_.degenerate_conditioning)) res.cm = 0.0;
+    if (degenerate(res.conditioning)) res.cm = 0.0;
     if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.

@@ -564,11 +564,9 @@ TEST(Odometry, AStartAtSpeedIsNotPulledBackByTheFirstScansRings) {
 // the truth by its first pose: the tilt the drive picked up.
 double tilt_at_end_deg(const SceneRun& run) {
   const std::vector<Eigen::Isometry3d> gt = truth_at(run.starts, run.truth_t);
-  const Eigen::Matrix3d est = gt.front().linear() * run.est.front().pose.linear().transpose() *
-                              run.est.back().pose.linear();
-  const Eigen::Vector3d up_est = est.transpose() * Eigen::Vector3d::UnitZ();
-  const Eigen::Vector3d up_gt = gt.back().linear().transpose() * Eigen::Vector3d::UnitZ();
-  return std::acos(std::clamp(up_est.dot(up_gt), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+  std::vector<TimedPose> truth;
+  for (std::size_t i = 0; i < gt.size(); ++i) truth.push_back({run.truth_t[i], gt[i]});
+  return evaluate(truth, run.est).tilt_end_deg;
 }
 
 // A street drive at 3.2 m/s with the sensor 1.19 m high, 420 rpm: the ground's ring arcs lie

@@ -314,6 +314,11 @@ class ConsensusOdometry {
   // previous pose (near_shortfall_fraction).
   [[nodiscard]] bool short_of_pyramid(const core::Pose6& pose,
                                       const core::Pose6& pyramid_pose) const;
+  // Whether a match's translation conditioning fails the degeneracy test (degenerate_conditioning;
+  // a saddle or no Hessian included).
+  [[nodiscard]] bool degenerate(double conditioning) const {
+    return !(conditioning >= options_.degenerate_conditioning);
+  }
   // Whether b lies farther than fine_reach from a (a turn counted at the scan's RMS range).
   [[nodiscard]] bool beyond_reach(const core::Pose6& a, const core::Pose6& b) const;
   double consensus_at(const core::Pose6& x, std::vector<double>& cv);
