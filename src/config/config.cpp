@@ -226,10 +226,10 @@ const std::vector<Field>& fields() {
        "the ground's ring arcs otherwise tilt the estimate and lift its height. false = the "
        "paper's voxel Gaussians everywhere (eq 4; docs/odometry.md, \"Level patches\")."},
       {"odometry", "patches_after_scans", CNDT_REF(odometry.patches_after_scans),
-       "Surface patches start once the local map holds this many scans: a plane judged from a "
-       "few scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs; campus drives were "
-       "lost with patches from the first scan, and with level patches from the fourth "
-       "(docs/odometry.md, \"Level patches\"; 4 with patch_max_tilt_deg = 90).",
+       "Surface patches only once the local map holds this many scans: a plane judged from "
+       "one or two sparse scans (900-1200 rpm) may be a few unrelated ring arcs; a campus drive "
+       "at 1200 rpm was lost at its sixth scan with patches once the map held two "
+       "(docs/odometry.md, \"Level patches\").",
        "scans", 0, 1000},
       {"odometry", "patch_max_tilt_deg", CNDT_REF(odometry.patch_max_tilt_deg),
        "With surface_patches, patches only for planes whose normal is within this angle of the "
@@ -239,7 +239,8 @@ const std::vector<Field>& fields() {
        "patches\").",
        "deg", 0, 90},
       {"odometry", "patches_clean_scans", CNDT_REF(odometry.patches_clean_scans),
-       "Surface patches only after this many matches in a row not flagged degenerate; a match "
+       "Surface patches only after this many matches in a row not flagged degenerate (at the "
+       "start of a drive too, whose first matches are on the paper's Gaussians); a match "
        "degenerate with patches is matched again without them (flag 1024) and they stay off "
        "until then: where the rest of the scene leaves the position free, the texture the rings "
        "give the ground is what holds it (0 = patches regardless; docs/odometry.md, \"Level "

@@ -572,7 +572,7 @@ double tilt_at_end_deg(const SceneRun& run) {
 // A street drive at 3.2 m/s with the sensor 1.19 m high, 420 rpm: the ground's ring arcs lie
 // dense and near, and tilting the sensor by a few tenths of a degree lines its far rings up
 // with the reference scans'. As eq 4's Gaussians they tilt the estimate by 1.0 deg in 4 s; as
-// level patches (the default) they hold height, roll and pitch only: 0.13 deg.
+// level patches (the default) they hold height, roll and pitch only: 0.10 deg.
 TEST(Odometry, LevelPatchesKeepALowSlowSensorLevel) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 20.0, 2, 7001, 0, 3.2);
   sim::Scene low = scene;
@@ -593,7 +593,7 @@ TEST(Odometry, LevelPatchesKeepALowSlowSensorLevel) {
 // 1200 rpm (0.2 m per revolution, sparse rings), pulling away from rest with the sensor turned
 // 129 deg on its mount: 3 s in, the rest was too little, the match slid 0.3 m, flagged
 // degenerate, and the estimate was lost (22 m off after 20 s). A match degenerate with patches
-// is matched again on eq 4's Gaussians, and the patches wait for ten clean matches.
+// is matched again on eq 4's Gaussians, and the patches wait for three clean matches.
 TEST(Odometry, ADegenerateMatchWithLevelPatchesIsMatchedAgainWithout) {
   sim::Scene scene = sim::build_scene(sim::SceneKind::kCampus, 20.0, 2, 108);
   scene.mount = (Eigen::AngleAxisd(129.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitZ()) *

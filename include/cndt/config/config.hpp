@@ -55,9 +55,9 @@ struct Config {
     double max_speed_mps = 40.0;
     double prior_weight = 0.003;
     bool surface_patches = true;
-    std::int64_t patches_after_scans = 8;
+    std::int64_t patches_after_scans = 4;
     double patch_max_tilt_deg = 25.0;
-    std::int64_t patches_clean_scans = 10;
+    std::int64_t patches_clean_scans = 3;
     bool deskew_to_mid_scan = false;
     std::int64_t guess_jitter_seed = 0;
   } odometry;

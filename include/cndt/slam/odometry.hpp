@@ -94,26 +94,28 @@ struct OdometryOptions {
   std::size_t min_points = 200;  ///< fewer matched points: the scan is not matched
   bool drop_ring_arcs = false;   ///< reference voxels holding a single ring arc get no Gaussian
   /// Reference voxels in a planar neighbourhood are matched as pieces of the plane
-  /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"), once the
-  /// local map holds patches_after_scans scans: a plane judged from the sums of one to three
-  /// scans (sparse at 900-1200 rpm) may be a few unrelated ring arcs, and campus drives were
-  /// lost with patches from the first scan. On by default for level planes only, from the
-  /// eighth scan and while the matches are not degenerate (patch_max_tilt_deg,
-  /// patches_clean_scans; docs/odometry.md, "Level patches"): they take out most of the tilt
-  /// the ground's ring arcs give. false: the paper's Gaussians (eq 4) everywhere.
+  /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"). On by
+  /// default for level planes only, once the local map holds patches_after_scans scans and
+  /// patches_clean_scans matches in a row were not degenerate (from the fourth scan of a drive
+  /// at speed; patch_max_tilt_deg; docs/odometry.md, "Level patches"): they take out most of the
+  /// tilt the ground's ring arcs give. false: the paper's Gaussians (eq 4) everywhere.
   bool surface_patches = true;
-  std::size_t patches_after_scans = 8;  ///< local-map scans before surface patches start
+  /// Surface patches only once the local map holds this many scans: a plane judged from the sums
+  /// of one or two sparse scans (900-1200 rpm) may be a few unrelated ring arcs; a campus drive
+  /// at 1200 rpm was lost at its sixth scan with patches once the map held two.
+  std::size_t patches_after_scans = 4;
   /// With surface_patches, patches only for level planes (normal within this angle of the
   /// odometry frame's z, the first scan's): the ground's ring arcs, which tilt the start,
   /// become patches, while walls and the flat sides of movers keep the paper's Gaussians (and
   /// with them the Cv cut's lead over naive). 90: every plane.
   double patch_max_tilt_deg = 25.0;
-  /// Surface patches only after this many matches in a row not flagged degenerate. A match
-  /// degenerate with patches is matched again without them (kOdomWithoutPatches), and they stay
-  /// off (the map's voxels keep eq 4's Gaussians) until then. Where the rest of the scene leaves
-  /// the position free (sparse campus scans at 1200 rpm), the texture the rings give the ground
-  /// is what holds it; with level patches alone such drives were lost. 0: patches regardless.
-  std::size_t patches_clean_scans = 10;
+  /// Surface patches only after this many matches in a row not flagged degenerate, at the start
+  /// of a drive too. A match degenerate with patches is matched again without them
+  /// (kOdomWithoutPatches), and they stay off (the map's voxels keep eq 4's Gaussians) until
+  /// then. Where the rest of the scene leaves the position free (sparse campus scans at
+  /// 1200 rpm), the texture the rings give the ground is what holds it; with level patches alone
+  /// such drives were lost. 0: patches regardless.
+  std::size_t patches_clean_scans = 3;
   /// Coarser grids of the same reference the scan is matched on first, coarsest first. Their
   /// Gaussians are blurred (eigenvalues floored at pyramid_eigen_floor x the largest) and voxels
   /// holding a single ring arc get none, so they pull from much farther than the fine grid,
