@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <random>
 #include <tuple>
 
@@ -752,9 +753,9 @@ TEST(LocalizationConsensus, DegenerateGeometryGivesZero) {
 // each), added to `out`.
 void floor_rings(double x0, std::vector<Eigen::Vector3d>& out) {
   for (double elevation_deg = -15.0; elevation_deg <= -3.0; elevation_deg += 2.0) {
-    const double r = 1.9 / std::tan(-elevation_deg * 3.14159265358979323846 / 180.0);
+    const double r = 1.9 / std::tan(-elevation_deg * std::numbers::pi / 180.0);
     for (int k = 0; k < 1800; ++k) {
-      const double a = 2.0 * 3.14159265358979323846 * k / 1800.0;
+      const double a = 2.0 * std::numbers::pi * k / 1800.0;
       out.emplace_back(x0 + r * std::cos(a), r * std::sin(a), 0.0);
     }
   }
@@ -801,9 +802,9 @@ TEST(VoxelGrid, LevelPatchesLeaveSteepPlanesTheirGaussians) {
   floor_rings(0.3, scan);
   for (const bool wall : {false, true}) {
     const Eigen::Matrix3d turn =
-        wall ? Eigen::AngleAxisd(3.14159265358979323846 / 2.0, Eigen::Vector3d::UnitX())
-                   .toRotationMatrix()
-             : Eigen::Matrix3d::Identity();
+        wall
+            ? Eigen::AngleAxisd(std::numbers::pi / 2.0, Eigen::Vector3d::UnitX()).toRotationMatrix()
+            : Eigen::Matrix3d::Identity();
     VoxelGrid grid({0.5, 100'000, 5, 0.001, false, true, 25.0});
     for (const auto& p : reference) grid.add(turn * p);
     grid.finalize();
