@@ -30,7 +30,8 @@ VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
       inv_size_(1.0 / options.voxel_size),
       patch_min_normal_z_(options.patch_max_tilt_deg >= 90.0
                               ? -1.0
-                              : std::cos(options.patch_max_tilt_deg * std::numbers::pi / 180.0)) {
+                              : std::cos(options.patch_max_tilt_deg * std::numbers::pi / 180.0)),
+      listed_(options.surface_patches) {
   // Versions are unique across grids (the high half numbers the grid), so that a lookup cache
   // never mistakes a new grid at a reused address for the one it was filled from.
   static std::atomic<std::uint64_t> grids{0};
@@ -39,11 +40,14 @@ VoxelGrid::VoxelGrid(const VoxelGridOptions& options)
     core::reserve_resident(voxels_, options.capacity);
     core::reserve_resident(gaussians_, options.capacity);
     core::reserve_resident(dirty_, options.capacity);
+    if (listed_) core::reserve_resident(around_, options.capacity);
   } else {
     voxels_.reserve(options.capacity);
     gaussians_.reserve(options.capacity);
     dirty_.reserve(options.capacity);
+    if (listed_) around_.reserve(options.capacity);
   }
+  if (listed_) renumber_.assign(options.capacity, -1);
   // Load factor at most one half, also when full.
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(16, options.capacity * 2));
   table_.assign(slots, Slot{});
@@ -118,6 +122,19 @@ void VoxelGrid::grow_table_for(std::size_t voxels) noexcept {
   }
 }
 
+void VoxelGrid::link_new(std::size_t index) noexcept {
+  if (!listed_) return;
+  around_.emplace_back();  // within the capacity reserved
+  const VoxelKey key = voxels_[index].key;
+  const auto self = static_cast<std::int32_t>(index);
+  for (int p = 0; p < 27; ++p) {
+    if (p == kCentre) continue;
+    const std::int64_t j = index_of(around_key(key, p));
+    around_[index][around_entry(p)] = static_cast<std::int32_t>(j);
+    if (j >= 0) around_[static_cast<std::size_t>(j)][around_entry(26 - p)] = self;
+  }
+}
+
 void VoxelGrid::mark_dirty(Voxel& v, std::size_t index) noexcept {
   if (v.dirty) return;
   v.dirty = true;
@@ -150,6 +167,7 @@ bool VoxelGrid::restore(const VoxelKey& k, std::uint32_t count, const Eigen::Vec
   v.sum_outer = sum_outer;
   v.consensus = consensus;
   ++version_;
+  link_new(voxels_.size() - 1);
   mark_dirty(v, voxels_.size() - 1);
   return true;
 }
@@ -169,6 +187,7 @@ Voxel* VoxelGrid::add_point(const Eigen::Vector3d& p) noexcept {
     gaussians_.emplace_back();
     voxels_.back().key = k;
     ++version_;  // a lookup that found nothing here would now find this voxel
+    link_new(voxels_.size() - 1);
   } else if (voxels_[static_cast<std::size_t>(found)].count == 0) {
     --empty_;  // a voxel emptied by remove() fills again
   }
@@ -201,14 +220,14 @@ bool VoxelGrid::remove(const Eigen::Vector3d& p) noexcept {
   return true;
 }
 
-bool VoxelGrid::neighbourhood_plane(const VoxelKey& key, Eigen::Vector3d& normal) const noexcept {
+bool VoxelGrid::neighbourhood_plane(std::size_t index, Eigen::Vector3d& normal) const noexcept {
   // The neighbours' sums moved to this voxel's corner: sum (p - c) = m_j + n_j d and
   // sum (p - c)(p - c)^T = S_j + m_j d^T + d m_j^T + n_j d d^T, for d = c_j - c.
-  const Eigen::Vector3d c = corner(key);
+  const Eigen::Vector3d c = corner(voxels_[index].key);
   double n = 0.0;
   Eigen::Vector3d s1 = Eigen::Vector3d::Zero();
   Eigen::Matrix3d s2 = Eigen::Matrix3d::Zero();
-  for_each_around(key, [&](std::size_t j) {
+  for_each_around(index, [&](std::size_t j) {
     const Voxel& u = voxels_[j];
     if (u.count == 0) return;
     const double nj = u.count;
@@ -243,7 +262,7 @@ void VoxelGrid::derive(std::size_t index) noexcept {
   const Eigen::Matrix3d cov = v.covariance();      // eq 4, covariance
   Eigen::Matrix3d A;
   Eigen::Vector3d normal;
-  if (options_.surface_patches && neighbourhood_plane(v.key, normal) &&
+  if (options_.surface_patches && neighbourhood_plane(index, normal) &&
       std::abs(normal.z()) >= patch_min_normal_z_) {
     A = surface_patch(cov, normal);
   } else {
@@ -301,7 +320,7 @@ void VoxelGrid::finalize() noexcept {
     // A voxel's Gaussian reads its neighbours' sums: theirs change with it.
     const std::size_t changed = dirty_.size();
     for (std::size_t d = 0; d < changed; ++d) {
-      for_each_around(voxels_[dirty_[d]].key, [&](std::size_t j) { mark_dirty(voxels_[j], j); });
+      for_each_around(dirty_[d], [&](std::size_t j) { mark_dirty(voxels_[j], j); });
     }
   }
   for (std::uint32_t i : dirty_) {
@@ -331,6 +350,7 @@ void VoxelGrid::rebuild_table() noexcept {
 void VoxelGrid::clear() noexcept {
   voxels_.clear();
   gaussians_.clear();
+  around_.clear();
   dirty_.clear();
   std::fill_n(table_.begin(), mask_ + 1, Slot{});
   mask_ = 15;

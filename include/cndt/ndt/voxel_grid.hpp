@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -189,21 +190,40 @@ class VoxelGrid {
   [[nodiscard]] Eigen::Vector3d corner(const VoxelKey& k) const noexcept;
   void mark_dirty(Voxel& v, std::size_t index) noexcept;
   void derive(std::size_t index) noexcept;  // gaussians_[index] from voxels_[index]'s sums
-  // surface_patches: whether the voxels around `key` (with it) hold a plane, and its normal.
-  bool neighbourhood_plane(const VoxelKey& key, Eigen::Vector3d& normal) const noexcept;
+  // surface_patches: whether the voxels around voxel `index` (with it) hold a plane, and its
+  // normal.
+  bool neighbourhood_plane(std::size_t index, Eigen::Vector3d& normal) const noexcept;
   // surface_patches: the inverse covariance of a voxel with covariance `cov` in a plane.
   Eigen::Matrix3d surface_patch(const Eigen::Matrix3d& cov,
                                 const Eigen::Vector3d& normal) const noexcept;
-  // f(index) for `key` and each of its 26 neighbours that is in the grid.
+  // The 26 neighbours of a voxel, position p = 9 (dx + 1) + 3 (dy + 1) + (dz + 1) for offsets in
+  // -1..1 (13, the voxel itself, left out: entry p - (p > 13)); -1 where none is in the grid.
+  // The neighbour at position p sees this voxel at position 26 - p.
+  using Around = std::array<std::int32_t, 26>;
+  static constexpr int kCentre = 13;
+  static constexpr VoxelKey around_key(const VoxelKey& key, int p) noexcept {
+    return {key.x + p / 9 - 1, key.y + (p / 3) % 3 - 1, key.z + p % 3 - 1};
+  }
+  static constexpr std::size_t around_entry(int p) noexcept {
+    return static_cast<std::size_t>(p < kCentre ? p : p - 1);
+  }
+  // Fills the new voxel `index`'s neighbour list and enters it in its neighbours' lists.
+  void link_new(std::size_t index) noexcept;
+  // f(index) for voxel `index` and each of its 26 neighbours that is in the grid, in the order
+  // of their positions (the voxel itself 14th): from the neighbour lists when the grid keeps
+  // them, otherwise by lookups.
   template <class F>
-  void for_each_around(const VoxelKey& key, F f) const noexcept {
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -1; dz <= 1; ++dz) {
-          const std::int64_t j = index_of(VoxelKey{key.x + dx, key.y + dy, key.z + dz});
-          if (j >= 0) f(static_cast<std::size_t>(j));
-        }
+  void for_each_around(std::size_t index, F f) const noexcept {
+    for (int p = 0; p < 27; ++p) {
+      std::int64_t j;
+      if (p == kCentre) {
+        j = static_cast<std::int64_t>(index);
+      } else if (listed_) {
+        j = around_[index][around_entry(p)];
+      } else {
+        j = index_of(around_key(voxels_[index].key, p));
       }
+      if (j >= 0) f(static_cast<std::size_t>(j));
     }
   }
   // Drops the voxels for which pred holds, with their Gaussians, keeping the order and the
@@ -212,16 +232,29 @@ class VoxelGrid {
   std::size_t remove_voxels_if(Pred pred) noexcept {
     std::size_t kept = 0;
     for (std::size_t i = 0; i < voxels_.size(); ++i) {
-      if (pred(voxels_[i])) continue;
+      if (pred(voxels_[i])) {
+        if (listed_) renumber_[i] = -1;
+        continue;
+      }
       if (kept != i) {
         voxels_[kept] = voxels_[i];
         gaussians_[kept] = gaussians_[i];
+        if (listed_) around_[kept] = around_[i];
       }
+      if (listed_) renumber_[i] = static_cast<std::int32_t>(kept);
       ++kept;
     }
     const std::size_t removed = voxels_.size() - kept;
     voxels_.resize(kept);  // shrinking: no allocation
     gaussians_.resize(kept);
+    if (listed_) {
+      around_.resize(kept);
+      for (Around& a : around_) {
+        for (std::int32_t& j : a) {
+          if (j >= 0) j = renumber_[static_cast<std::size_t>(j)];
+        }
+      }
+    }
     return removed;
   }
 
@@ -235,6 +268,13 @@ class VoxelGrid {
   // held, so that a grid far below its capacity keeps a small table in the caches.
   std::vector<Slot> table_;
   std::vector<std::uint32_t> dirty_;  // voxels changed since the last finalize()
+  // Set when the grid was made with surface_patches: each voxel's neighbour list is kept, index
+  // for index with voxels_ (a plane judged over a voxel's neighbourhood reads 26 neighbours for
+  // every voxel derived, and marks them at every change: lookups cost more than the lists'
+  // upkeep), with the new index of each voxel while remove_voxels_if() renumbers them.
+  bool listed_;
+  std::vector<Around> around_;
+  std::vector<std::int32_t> renumber_;
   std::size_t mask_ = 15;
   std::size_t empty_ = 0;
   std::uint64_t refused_ = 0;

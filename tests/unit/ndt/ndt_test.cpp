@@ -856,5 +856,64 @@ TEST(VoxelGrid, SurfacePatchesSwitchedOnLaterApplyToTheVoxelsHeld) {
   EXPECT_EQ(score(switched), score(plain));
 }
 
+// A grid made with surface patches keeps each voxel's neighbour list through additions,
+// removals and compactions (which renumber the voxels); its Gaussians equal, bit for bit, those
+// of a grid that finds the neighbours by lookups (made without patches, then switched on) and is
+// never compacted.
+TEST(VoxelGrid, NeighbourListsGiveTheGaussiansOfLookups) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 4.0), noise(-0.003, 0.003);
+  std::vector<Eigen::Vector3d> points;
+  double shift = 0.0;  // the points move on along x from round to round
+  auto draw = [&] {    // a floor with a step, and a wall
+    const double x = shift + u(rng), y = u(rng);
+    if (points.size() % 4 == 3) return Eigen::Vector3d(x, 2.0 + noise(rng), 0.5 * y);
+    return Eigen::Vector3d(x, y, (x - shift > 2.0 ? 0.3 : 0.0) + noise(rng));
+  };
+  for (int i = 0; i < 5000; ++i) {
+    if (i == 2500) shift += 3.0;
+    points.push_back(draw());
+  }
+  VoxelGrid listed({0.5, 10'000, 5, 0.001, false, true, 25.0});
+  VoxelGrid looked_up({0.5, 10'000, 5, 0.001, false, false, 25.0});
+  VoxelGrid plain({0.5, 10'000, 5, 0.001, false, false, 25.0});
+  looked_up.set_surface_patches(true);
+  std::size_t added = 0, removed = 0;
+  for (int round = 0; round < 4; ++round) {
+    // The new points come in and the oldest leave, emptying voxels that compact() then drops
+    // from `listed` alone.
+    for (VoxelGrid* g : {&listed, &looked_up, &plain}) {
+      for (std::size_t i = added; i < points.size(); ++i) g->add(points[i]);
+      for (std::size_t i = removed; i < removed + 2500; ++i) ASSERT_TRUE(g->remove(points[i]));
+    }
+    added = points.size();
+    removed += 2500;
+    ASSERT_GT(listed.empty_voxels(), 0u);
+    listed.compact();
+    looked_up.finalize();
+    plain.finalize();
+    ASSERT_LT(listed.size(), looked_up.size());
+    int patches = 0;
+    for (const Voxel& v : looked_up.voxels()) {
+      const auto a = looked_up.index_of(v.key), b = listed.index_of(v.key);
+      if (v.count == 0) {
+        EXPECT_LT(b, 0);
+        continue;
+      }
+      ASSERT_GE(b, 0);
+      const Gaussian& ga = looked_up.gaussians()[static_cast<std::size_t>(a)];
+      const Gaussian& gb = listed.gaussians()[static_cast<std::size_t>(b)];
+      ASSERT_EQ(ga.valid, gb.valid);
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(ga.mean[k], gb.mean[k]);
+      for (int k = 0; k < 6; ++k) EXPECT_EQ(ga.inv_cov[k], gb.inv_cov[k]);
+      const Gaussian& gp = plain.gaussians()[static_cast<std::size_t>(plain.index_of(v.key))];
+      if (ga.valid != 0 && ga.inv_cov[0] != gp.inv_cov[0]) ++patches;
+    }
+    EXPECT_GT(patches, 10) << "round " << round;  // the floor's voxels are patches
+    shift += 3.0;
+    for (int i = 0; i < 2500; ++i) points.push_back(draw());
+  }
+}
+
 }  // namespace
 }  // namespace cndt::ndt
