@@ -124,15 +124,37 @@ void voxel_consensus_all(const VoxelResiduals& res, const ChiSquareTable& table,
 }
 
 namespace {
+// Both matrices are symmetric positive semi-definite; a tiny determinant means the directions
+// (or the weighted ones) do not span 3-D space.
+bool spans(const Eigen::Matrix3d& m, double scale) {
+  return m.determinant() >= 1e-12 * scale * scale * scale;
+}
+
 double dop_ratio(const Eigen::Matrix3d& gg, const Eigen::Matrix3d& gwg) {
-  // Both matrices are symmetric positive semi-definite; a tiny determinant means the
-  // directions (or the weighted ones) do not span 3-D space.
   const double scale = std::max(gg.trace(), 1e-12);
-  if (gg.determinant() < 1e-12 * scale * scale * scale) return 0.0;
-  if (gwg.determinant() < 1e-12 * scale * scale * scale) return 0.0;
+  if (!spans(gg, scale) || !spans(gwg, scale)) return 0.0;
   const double dop = std::sqrt(gg.inverse().trace());     // eq 12
   const double cwdop = std::sqrt(gwg.inverse().trace());  // eq 11
   return std::clamp(dop / cwdop, 0.0, 1.0);               // eq 13
+}
+
+// G^T G and G^T Omega G (eq 10) over the voxels with a Cv and a Gaussian.
+void direction_sums(const VoxelGrid& grid, const std::vector<double>& cv,
+                    const Eigen::Vector3d& sensor_position, Eigen::Matrix3d& gg,
+                    Eigen::Matrix3d& gwg) {
+  gg.setZero();
+  gwg.setZero();
+  const auto& gaussians = grid.gaussians();
+  for (std::size_t j = 0; j < gaussians.size() && j < cv.size(); ++j) {
+    if (std::isnan(cv[j]) || gaussians[j].valid == 0) continue;
+    const Eigen::Vector3d d = gaussians[j].mean_vector() - sensor_position;
+    const double n = d.norm();
+    if (n < 1e-6) continue;
+    const Eigen::Vector3d u = d / n;
+    const Eigen::Matrix3d uu = u * u.transpose();
+    gg += uu;
+    gwg += cv[j] * cv[j] * uu;
+  }
 }
 }  // namespace
 
@@ -151,19 +173,17 @@ double localization_consensus(std::span<const Eigen::Vector3d> directions,
 
 double localization_consensus(const VoxelGrid& grid, const std::vector<double>& cv,
                               const Eigen::Vector3d& sensor_position) {
-  Eigen::Matrix3d gg = Eigen::Matrix3d::Zero(), gwg = Eigen::Matrix3d::Zero();
-  const auto& gaussians = grid.gaussians();
-  for (std::size_t j = 0; j < gaussians.size() && j < cv.size(); ++j) {
-    if (std::isnan(cv[j]) || gaussians[j].valid == 0) continue;
-    const Eigen::Vector3d d = gaussians[j].mean_vector() - sensor_position;
-    const double n = d.norm();
-    if (n < 1e-6) continue;
-    const Eigen::Vector3d u = d / n;
-    const Eigen::Matrix3d uu = u * u.transpose();
-    gg += uu;
-    gwg += cv[j] * cv[j] * uu;
-  }
+  Eigen::Matrix3d gg, gwg;
+  direction_sums(grid, cv, sensor_position, gg, gwg);
   return dop_ratio(gg, gwg);
+}
+
+ConsensusMeasure measure_localization_consensus(const VoxelGrid& grid,
+                                                const std::vector<double>& cv,
+                                                const Eigen::Vector3d& sensor_position) {
+  Eigen::Matrix3d gg, gwg;
+  direction_sums(grid, cv, sensor_position, gg, gwg);
+  return {dop_ratio(gg, gwg), spans(gg, std::max(gg.trace(), 1e-12))};
 }
 
 }  // namespace cndt::ndt

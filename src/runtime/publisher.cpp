@@ -24,6 +24,7 @@ output::PoseMessage make_pose_message(const slam::OdometryResult& r, const Eigen
   if ((r.flags & slam::kOdomDegenerate) != 0) f |= output::kPoseDegenerate;
   if ((r.flags & slam::kOdomScanIncomplete) != 0) f |= output::kPoseScanIncomplete;
   if ((r.flags & slam::kOdomFirstScan) != 0) f |= output::kPoseFirstScan;
+  if ((r.flags & slam::kOdomCmUnmeasured) != 0) f |= output::kPoseCmUnmeasured;
   m.flags = f;
   if ((r.flags & (slam::kOdomTooFewPoints | slam::kOdomDegenerate)) != 0) {
     m.status = output::PoseStatus::kLost;

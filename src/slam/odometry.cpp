@@ -302,11 +302,12 @@ const ndt::ScanMotion* ConsensusOdometry::scan_motion() const {
   return solve_motion_ ? &scan_motion_ : nullptr;
 }
 
-double ConsensusOdometry::consensus_at(const core::Pose6& x, std::vector<double>& cv) {
+ndt::ConsensusMeasure ConsensusOdometry::consensus_at(const core::Pose6& x,
+                                                      std::vector<double>& cv) {
   residuals_.reset(grid_.size());
   residual_accumulator_.run(grid_, cv_points_, x, residuals_, lookup_cache_.runner());
   ndt::voxel_consensus_all(residuals_, chi2_, {}, cv);
-  return ndt::localization_consensus(grid_, cv, x.head<3>());
+  return ndt::measure_localization_consensus(grid_, cv, x.head<3>());
 }
 
 void ConsensusOdometry::drop_oldest() {
@@ -685,11 +686,17 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     }
     // The reference and Cm take the scan deskewed with the final estimate.
     deskew_scan(deskew_motion(res.pose));
-    res.cm = consensus_at(core::to_pose6(res.pose), cv_);
+    const ndt::ConsensusMeasure consensus = consensus_at(core::to_pose6(res.pose), cv_);
+    res.cm = consensus.cm;
     // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
     // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.
     if (degenerate(res.conditioning)) res.cm = 0.0;
-    if (res.cm <= 0.0) res.flags |= kOdomDegenerate;
+    // A Cm of 0 for want of voxels with a Cv says nothing of the match: flagged apart, so
+    // that a sparse scan whose match is well posed still counts as clean.
+    if (res.cm <= 0.0) {
+      const bool unmeasured = !consensus.measured && !degenerate(res.conditioning);
+      res.flags |= unmeasured ? kOdomCmUnmeasured : kOdomDegenerate;
+    }
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.
   res.dt = dt;

@@ -117,6 +117,12 @@ TEST(PosePublisher, StatusFollowsTheOdometryFlagsAndCm) {
   EXPECT_EQ(status(slam::kOdomDegenerate, 0.0), PoseStatus::kLost);
   EXPECT_EQ(status(slam::kOdomTooFewPoints, 0.0), PoseStatus::kLost);
   EXPECT_EQ(status(slam::kOdomFirstScan, 0.0), PoseStatus::kValid);
+  // Cm not measured (too few voxels with a Cv): degraded, not lost, and said so in the flags.
+  EXPECT_EQ(status(slam::kOdomCmUnmeasured, 0.0), PoseStatus::kDegraded);
+  slam::OdometryResult unmeasured;
+  unmeasured.flags = slam::kOdomCmUnmeasured;
+  const auto m = make_pose_message(unmeasured, Eigen::Isometry3d::Identity(), false, 0, options);
+  EXPECT_EQ(m.flags, output::kPoseCmUnmeasured);
 }
 
 TEST(AllocCounter, CountsOnTheCallingThreadOnly) {

@@ -87,6 +87,18 @@ void voxel_consensus_all(const VoxelResiduals& res, const ChiSquareTable& table,
 double localization_consensus(const VoxelGrid& grid, const std::vector<double>& cv,
                               const Eigen::Vector3d& sensor_position);
 
+/// Cm, and whether the voxels with a Cv span the three directions G^T G needs. Where too few
+/// voxels had enough test points for a Cv (a sparse scan: high rotor speed, heavy packet loss)
+/// Cm is 0 for want of measurements, not because the scan disagrees with the reference or the
+/// scene leaves the position free: `measured` is false then.
+struct ConsensusMeasure {
+  double cm = 0.0;
+  bool measured = false;
+};
+ConsensusMeasure measure_localization_consensus(const VoxelGrid& grid,
+                                                const std::vector<double>& cv,
+                                                const Eigen::Vector3d& sensor_position);
+
 /// The same from explicit directions and Cv values (for tests and the sweep tool).
 double localization_consensus(std::span<const Eigen::Vector3d> directions,
                               std::span<const double> cv);

@@ -25,6 +25,8 @@ enum PoseFlags : std::uint16_t {
   kPoseScanIncomplete = 1u << 4,  ///< the revolution was partial or lost packets
   kPoseFirstScan = 1u << 5,       ///< the first pose of the trajectory (the origin)
   kPoseOutOfRange = 1u << 6,      ///< a value exceeded a CAN signal's range and was clamped
+  /// Cm could not be measured (too few voxels with enough points for a Cv; Cm = 0)
+  kPoseCmUnmeasured = 1u << 7,
 };
 
 struct PoseMessage {

@@ -217,6 +217,10 @@ enum OdometryFlags : std::uint32_t {
   /// Degenerate with surface patches in the reference: matched again on eq 4's Gaussians
   /// (patches_clean_scans).
   kOdomWithoutPatches = 1u << 10,
+  /// Too few reference voxels got enough of the scan's points for a Cv (ndt::CvOptions) to
+  /// give Cm directions in 3-D (a sparse scan: 1200 rpm, heavy packet loss), while the match
+  /// itself is well posed: Cm reported as 0, and the pose not flagged degenerate.
+  kOdomCmUnmeasured = 1u << 11,
 };
 
 struct OdometryResult {
@@ -323,7 +327,7 @@ class ConsensusOdometry {
   }
   // Whether b lies farther than fine_reach from a (a turn counted at the scan's RMS range).
   [[nodiscard]] bool beyond_reach(const core::Pose6& a, const core::Pose6& b) const;
-  double consensus_at(const core::Pose6& x, std::vector<double>& cv);
+  ndt::ConsensusMeasure consensus_at(const core::Pose6& x, std::vector<double>& cv);
 
   OdometryOptions options_;
   Eigen::Vector3d level_ = Eigen::Vector3d::UnitZ();  // normal of the ground, odometry frame

@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <random>
@@ -747,6 +748,37 @@ TEST(LocalizationConsensus, DegenerateGeometryGivesZero) {
   std::vector<Eigen::Vector3d> line(10, Eigen::Vector3d::UnitX());
   std::vector<double> cv(10, 1.0);
   EXPECT_EQ(localization_consensus(line, cv), 0.0);
+}
+
+// Cm over a grid: measured when the voxels with a Cv span the three directions, whatever their
+// Cv; not measured when too few have one (a sparse scan), though Cm is 0 either way.
+TEST(LocalizationConsensus, TellsAnUnmeasuredCmFromALowOne) {
+  VoxelGrid grid({0.5, 1'000, 5, 0.001});
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0.05, 0.45);
+  const std::vector<Eigen::Vector3d> corners{{4, 0, 0}, {-4, 0, 0}, {0, 4, 0}, {0, -4, 0},
+                                             {0, 0, 4}, {0, 0, -2}, {3, 3, 1}, {-3, 2, -1}};
+  for (const auto& c : corners) {
+    for (int i = 0; i < 20; ++i) grid.add(c + Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  }
+  grid.finalize();
+  ASSERT_EQ(grid.size(), corners.size());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Eigen::Vector3d sensor = Eigen::Vector3d::Zero();
+  std::vector<double> cv(grid.size(), 1.0);
+  ConsensusMeasure m = measure_localization_consensus(grid, cv, sensor);
+  EXPECT_TRUE(m.measured);
+  EXPECT_NEAR(m.cm, 1.0, 1e-12);
+  EXPECT_EQ(m.cm, localization_consensus(grid, cv, sensor));
+  std::fill(cv.begin(), cv.end(), 0.0);  // every voxel disagrees
+  m = measure_localization_consensus(grid, cv, sensor);
+  EXPECT_TRUE(m.measured);
+  EXPECT_EQ(m.cm, 0.0);
+  std::fill(cv.begin(), cv.end(), nan);  // two voxels with a Cv: directions in a plane
+  cv[0] = cv[2] = 1.0;
+  m = measure_localization_consensus(grid, cv, sensor);
+  EXPECT_FALSE(m.measured);
+  EXPECT_EQ(m.cm, 0.0);
 }
 
 // The rings a sensor 1.9 m above a floor leaves on it from x = x0 (seven lasers, 1,800 points
