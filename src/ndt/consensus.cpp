@@ -124,15 +124,15 @@ void voxel_consensus_all(const VoxelResiduals& res, const ChiSquareTable& table,
 }
 
 namespace {
-// Both matrices are symmetric positive semi-definite; a tiny determinant means the directions
-// (or the weighted ones) do not span 3-D space.
-bool spans(const Eigen::Matrix3d& m, double scale) {
+// Both matrices are symmetric positive semi-definite; a tiny determinant (against the scale of
+// G^T G) means the directions, or the weighted ones, do not span 3-D space.
+bool spans(const Eigen::Matrix3d& m, const Eigen::Matrix3d& gg) {
+  const double scale = std::max(gg.trace(), 1e-12);
   return m.determinant() >= 1e-12 * scale * scale * scale;
 }
 
 double dop_ratio(const Eigen::Matrix3d& gg, const Eigen::Matrix3d& gwg) {
-  const double scale = std::max(gg.trace(), 1e-12);
-  if (!spans(gg, scale) || !spans(gwg, scale)) return 0.0;
+  if (!spans(gg, gg) || !spans(gwg, gg)) return 0.0;
   const double dop = std::sqrt(gg.inverse().trace());     // eq 12
   const double cwdop = std::sqrt(gwg.inverse().trace());  // eq 11
   return std::clamp(dop / cwdop, 0.0, 1.0);               // eq 13
@@ -173,9 +173,7 @@ double localization_consensus(std::span<const Eigen::Vector3d> directions,
 
 double localization_consensus(const VoxelGrid& grid, const std::vector<double>& cv,
                               const Eigen::Vector3d& sensor_position) {
-  Eigen::Matrix3d gg, gwg;
-  direction_sums(grid, cv, sensor_position, gg, gwg);
-  return dop_ratio(gg, gwg);
+  return measure_localization_consensus(grid, cv, sensor_position).cm;
 }
 
 ConsensusMeasure measure_localization_consensus(const VoxelGrid& grid,
@@ -183,7 +181,7 @@ ConsensusMeasure measure_localization_consensus(const VoxelGrid& grid,
                                                 const Eigen::Vector3d& sensor_position) {
   Eigen::Matrix3d gg, gwg;
   direction_sums(grid, cv, sensor_position, gg, gwg);
-  return {dop_ratio(gg, gwg), spans(gg, std::max(gg.trace(), 1e-12))};
+  return {dop_ratio(gg, gwg), spans(gg, gg)};
 }
 
 }  // namespace cndt::ndt

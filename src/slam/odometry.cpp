@@ -690,12 +690,12 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     res.cm = consensus.cm;
     // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
     // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.
-    if (degenerate(res.conditioning)) res.cm = 0.0;
+    const bool ill_posed = degenerate(res.conditioning);
+    if (ill_posed) res.cm = 0.0;
     // A Cm of 0 for want of voxels with a Cv says nothing of the match: flagged apart, so
     // that a sparse scan whose match is well posed still counts as clean.
     if (res.cm <= 0.0) {
-      const bool unmeasured = !consensus.measured && !degenerate(res.conditioning);
-      res.flags |= unmeasured ? kOdomCmUnmeasured : kOdomDegenerate;
+      res.flags |= !consensus.measured && !ill_posed ? kOdomCmUnmeasured : kOdomDegenerate;
     }
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.
