@@ -10,6 +10,22 @@ cd "$root"
 fuzz_seconds=${CNDT_FUZZ_SECONDS:-30}
 bash scripts/deps.sh test
 
+# The four build trees below take about 4.8 GB and the compiler cache about 1.7 GB (a clean
+# clone, measured): stop now, saying so, when the disk cannot hold what is still to be built,
+# rather than in a link step minutes later.
+ccache_dir=${CCACHE_DIR:-$HOME/.cache/cndt-ccache}
+need_mb=7000
+# (du fails on the trees not made yet, after counting the rest)
+built_mb=$({ du -smc build/test build/asan build/tsan build/fuzz "$ccache_dir" 2>/dev/null || true; } |
+  tail -1 | cut -f1)
+free_mb=$(df -Pm . | awk 'NR == 2 {print $4}')
+if ((free_mb + built_mb < need_mb)); then
+  echo "cndt: the test stages need about $need_mb MB of disk for their build trees and compiler" \
+    "cache; $free_mb MB are free on $(df -P . | awk 'NR == 2 {print $6}') and $built_mb MB of" \
+    "them are built already: free $((need_mb - free_mb - built_mb)) MB more first" >&2
+  exit 1
+fi
+
 echo "== build and test (RelWithDebInfo)"
 bash scripts/build.sh build/test -DCMAKE_BUILD_TYPE=RelWithDebInfo
 ctest --test-dir build/test --output-on-failure -j 2
