@@ -250,6 +250,11 @@ const std::vector<Field>& fields() {
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
        "stays at the stamp). Halves RTE and RPE on 30 s simulated drives but drifts more on a "
        "120 s street (docs/odometry.md)."},
+      {"odometry", "deskew_acceleration", CNDT_REF(odometry.deskew_acceleration),
+       "Deskew with the velocity at the scan stamp from the last three poses (after a clean "
+       "match) instead of the mean velocity over the last period, which lags half a period "
+       "behind: follows a vehicle pitching on its suspension, most at 300-420 rpm "
+       "(docs/odometry.md, \"Deskew velocity\")."},
       {"odometry", "guess_jitter_seed", CNDT_REF(odometry.guess_jitter_seed),
        "For evaluation only (0 = off): every match starts from its initial guess moved by at most "
        "0.5e-9 m / rad per coordinate, drawn from this seed, to show how far results depend on "

@@ -291,7 +291,18 @@ void ConsensusOdometry::deskew_scan(const Eigen::Isometry3d& motion) {
 }
 
 Eigen::Isometry3d ConsensusOdometry::deskew_motion(const Eigen::Isometry3d& pose) const {
-  return scale_motion(prev_pose_.inverse() * pose, to_period_);
+  const Eigen::Isometry3d held = scale_motion(prev_pose_.inverse() * pose, to_period_);
+  if (extrapolate_ == 0.0) return held;
+  // Rotation vectors and translations per period combine linearly: the motions are small.
+  const Eigen::AngleAxisd aa(held.linear());
+  const Eigen::Vector3d turn =
+      (1.0 + extrapolate_) * aa.angle() * aa.axis() - extrapolate_ * prev_turn_;
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  if (const double angle = turn.norm(); angle > 0.0) {
+    out.linear() = Eigen::AngleAxisd(angle, turn / angle).toRotationMatrix();
+  }
+  out.translation() = (1.0 + extrapolate_) * held.translation() - extrapolate_ * prev_shift_;
+  return out;
 }
 
 void ConsensusOdometry::deskew_at(const Eigen::Isometry3d& pose) {
@@ -565,9 +576,23 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     range2 += p.p.squaredNorm();
   }
   rms_range_ = scan_src_.empty() ? 0.0 : std::sqrt(range2 / static_cast<double>(scan_src_.size()));
+  // The velocity at the stamp (deskew_acceleration). The motion from prev_pose_ is the mean
+  // velocity over the period that ends at the stamp, half a period behind it; with the motion
+  // before it (a quadratic through the last three poses, the second-order backward difference)
+  // the velocity at the stamp is (3 x the motion - the last motion) / 2. A point's position
+  // then moves 1.5 times as far with the pose: its lever.
+  extrapolate_ = 0.0;
+  if (options_.deskew_acceleration && have_prev2_ && trusted) {
+    extrapolate_ = 0.5;
+    const Eigen::AngleAxisd last(prev_motion_.linear());  // spans one period (period_s_)
+    prev_turn_ = last.angle() * last.axis();
+    prev_shift_ = prev_motion_.translation();
+    for (double& lever : lever_) lever *= 1.0 + extrapolate_;
+  }
   scan_motion_.lever = lever_;
   const Eigen::Isometry3d predicted = prev_pose_ * motion;
-  const Eigen::Isometry3d predicted_deskew = scale_motion(motion, to_period_);  // over one period
+  const Eigen::Isometry3d predicted_deskew =  // over one period
+      extrapolate_ == 0.0 ? scale_motion(motion, to_period_) : deskew_motion(predicted);
   deskew_for(predicted_deskew, core::to_pose6(predicted));
   res.points = test_.size();
   if (!have_prev_) {

@@ -72,6 +72,12 @@ struct OdometryOptions {
   /// street drive drifts to an ATE of 0.71 m (0.19 m without), which the mapper then does not
   /// correct (docs/odometry.md).
   bool deskew_to_mid_scan = false;
+  /// Deskew with the velocity at the stamp, from the last three poses (the second-order
+  /// backward difference: 1.5 x the motion from the last pose - 0.5 x the motion before it),
+  /// instead of the mean velocity over the last period, which lags half a period behind it;
+  /// only after a clean match. A vehicle pitching on its suspension (about 1 Hz) changes its
+  /// rate of pitch within a period, most at 300-420 rpm (docs/odometry.md, "Deskew velocity").
+  bool deskew_acceleration = true;
   /// A partial revolution (the stream's first, where the receiver started mid-turn, or the first
   /// after a gap in the data) is not matched: flag kOdomSkipped, no pose. As the first reference
   /// it covers only a sector and the start-up matches drift off by decimetres; after a gap it is
@@ -286,8 +292,8 @@ class ConsensusOdometry {
   void deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base);
   // Deskews the map_cell points (cv_points_: Cv, Cm, the reference and the mapper) with `motion`.
   void deskew_scan(const Eigen::Isometry3d& motion);
-  // The deskew motion over one period that `pose` implies (from prev_pose_ under constant
-  // velocity).
+  // The deskew motion over one period that `pose` implies: the motion from prev_pose_, with
+  // extrapolate_ the velocity at the stamp (deskew_acceleration).
   Eigen::Isometry3d deskew_motion(const Eigen::Isometry3d& pose) const;
   // deskew_for with deskew_motion(pose).
   void deskew_at(const Eigen::Isometry3d& pose);
@@ -384,6 +390,13 @@ class ConsensusOdometry {
   // With deskew_to_mid_scan, the poses and motions chained here are those at mid-revolution.
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
+  // deskew_acceleration for this scan: the deskew motion is (1 + extrapolate_) times the motion
+  // from prev_pose_ less extrapolate_ times the last one (prev_turn_, prev_shift_: rotation
+  // vector and translation per period); 0 when the last match was not clean or the option is
+  // off.
+  double extrapolate_ = 0.0;
+  Eigen::Vector3d prev_turn_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d prev_shift_ = Eigen::Vector3d::Zero();
   std::size_t clean_run_ = 0;  // matches since the last one flagged degenerate
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
