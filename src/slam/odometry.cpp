@@ -577,14 +577,17 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   }
   rms_range_ = scan_src_.empty() ? 0.0 : std::sqrt(range2 / static_cast<double>(scan_src_.size()));
   // The velocity at the stamp (deskew_acceleration). The motion from prev_pose_ is the mean
-  // velocity over the period that ends at the stamp, half a period behind it; with the motion
-  // before it (a quadratic through the last three poses, the second-order backward difference)
-  // the velocity at the stamp is (3 x the motion - the last motion) / 2. A point's position
-  // then moves 1.5 times as far with the pose: its lever.
+  // velocity over the dt that ends at the stamp, dt / 2 behind it; the last motion, the mean
+  // over the h before. Under constant acceleration (a quadratic through the last three poses,
+  // the second-order backward difference) the velocity at the stamp is the newer mean plus
+  // dt / (dt + h) times its change from the older: half of it for equal steps, next to nothing
+  // when the older motion spans a gap in the data. A point's position then moves 1 + that
+  // fraction times as far with the pose: its lever.
   extrapolate_ = 0.0;
   if (options_.deskew_acceleration && have_prev2_ && trusted) {
-    extrapolate_ = 0.5;
-    const Eigen::AngleAxisd last(prev_motion_.linear());  // spans one period (period_s_)
+    extrapolate_ = dt / (dt + prev_period_s_);
+    // prev_motion_ spans prev_period_s_, which is period_s_: its velocity per period.
+    const Eigen::AngleAxisd last(prev_motion_.linear());
     prev_turn_ = last.angle() * last.axis();
     prev_shift_ = prev_motion_.translation();
     for (double& lever : lever_) lever *= 1.0 + extrapolate_;

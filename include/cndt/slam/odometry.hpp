@@ -73,10 +73,11 @@ struct OdometryOptions {
   /// correct (docs/odometry.md).
   bool deskew_to_mid_scan = false;
   /// Deskew with the velocity at the stamp, from the last three poses (the second-order
-  /// backward difference: 1.5 x the motion from the last pose - 0.5 x the motion before it),
-  /// instead of the mean velocity over the last period, which lags half a period behind it;
-  /// only after a clean match. A vehicle pitching on its suspension (about 1 Hz) changes its
-  /// rate of pitch within a period, most at 300-420 rpm (docs/odometry.md, "Deskew velocity").
+  /// backward difference; for equal steps 1.5 x the motion from the last pose - 0.5 x the
+  /// motion before it), instead of the mean velocity over the last period, which lags half a
+  /// period behind it; only after a clean match. A vehicle pitching on its suspension (about
+  /// 1 Hz) changes its rate of pitch within a period, most at 300-420 rpm (docs/odometry.md,
+  /// "Deskew velocity").
   bool deskew_acceleration = true;
   /// A partial revolution (the stream's first, where the receiver started mid-turn, or the first
   /// after a gap in the data) is not matched: flag kOdomSkipped, no pose. As the first reference
@@ -393,7 +394,7 @@ class ConsensusOdometry {
   // deskew_acceleration for this scan: the deskew motion is (1 + extrapolate_) times the motion
   // from prev_pose_ less extrapolate_ times the last one (prev_turn_, prev_shift_: rotation
   // vector and translation per period); 0 when the last match was not clean or the option is
-  // off.
+  // off, 0.5 for equal time steps.
   double extrapolate_ = 0.0;
   Eigen::Vector3d prev_turn_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d prev_shift_ = Eigen::Vector3d::Zero();
