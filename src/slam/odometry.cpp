@@ -294,14 +294,17 @@ Eigen::Isometry3d ConsensusOdometry::deskew_motion(const Eigen::Isometry3d& pose
   const Eigen::Isometry3d held = scale_motion(prev_pose_.inverse() * pose, to_period_);
   if (extrapolate_ == 0.0) return held;
   // Rotation vectors and translations per period combine linearly: the motions are small.
+  // prev_motion_ spans prev_period_s_, which is period_s_: its velocity per period.
   const Eigen::AngleAxisd aa(held.linear());
+  const Eigen::AngleAxisd last(prev_motion_.linear());
   const Eigen::Vector3d turn =
-      (1.0 + extrapolate_) * aa.angle() * aa.axis() - extrapolate_ * prev_turn_;
+      (1.0 + extrapolate_) * aa.angle() * aa.axis() - extrapolate_ * (last.angle() * last.axis());
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
   if (const double angle = turn.norm(); angle > 0.0) {
     out.linear() = Eigen::AngleAxisd(angle, turn / angle).toRotationMatrix();
   }
-  out.translation() = (1.0 + extrapolate_) * held.translation() - extrapolate_ * prev_shift_;
+  out.translation() =
+      (1.0 + extrapolate_) * held.translation() - extrapolate_ * prev_motion_.translation();
   return out;
 }
 
@@ -566,32 +569,26 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   scan_sampler_.run(map_src_, scan_src_);
   // The deskew motion spans one scan period; `motion` spans dt.
   to_period_ = period_s_ / std::max(dt, 1e-3);
-  // A point fired t after the stamp moves t / dt times the pose's change with the undistortion
-  // (measured from mid-revolution with deskew_to_mid_scan): its lever in the matches.
-  const double lever_origin = options_.deskew_to_mid_scan ? 0.5 : 0.0;
-  lever_.clear();
-  double range2 = 0.0;
-  for (const TimedPoint& p : scan_src_) {
-    lever_.push_back((p.t / period_s_ - lever_origin) * to_period_);
-    range2 += p.p.squaredNorm();
-  }
-  rms_range_ = scan_src_.empty() ? 0.0 : std::sqrt(range2 / static_cast<double>(scan_src_.size()));
   // The velocity at the stamp (deskew_acceleration). The motion from prev_pose_ is the mean
   // velocity over the dt that ends at the stamp, dt / 2 behind it; the last motion, the mean
   // over the h before. Under constant acceleration (a quadratic through the last three poses,
   // the second-order backward difference) the velocity at the stamp is the newer mean plus
   // dt / (dt + h) times its change from the older: half of it for equal steps, next to nothing
-  // when the older motion spans a gap in the data. A point's position then moves 1 + that
-  // fraction times as far with the pose: its lever.
-  extrapolate_ = 0.0;
-  if (options_.deskew_acceleration && have_prev2_ && trusted) {
-    extrapolate_ = dt / (dt + prev_period_s_);
-    // prev_motion_ spans prev_period_s_, which is period_s_: its velocity per period.
-    const Eigen::AngleAxisd last(prev_motion_.linear());
-    prev_turn_ = last.angle() * last.axis();
-    prev_shift_ = prev_motion_.translation();
-    for (double& lever : lever_) lever *= 1.0 + extrapolate_;
+  // when the older motion spans a gap in the data.
+  extrapolate_ =
+      options_.deskew_acceleration && have_prev2_ && trusted ? dt / (dt + prev_period_s_) : 0.0;
+  // A point fired t after the stamp moves t / dt times the pose's change with the undistortion
+  // (measured from mid-revolution with deskew_to_mid_scan), 1 + extrapolate_ times that with
+  // the velocity at the stamp: its lever in the matches.
+  const double lever_origin = options_.deskew_to_mid_scan ? 0.5 : 0.0;
+  const double lever_scale = 1.0 + extrapolate_;
+  lever_.clear();
+  double range2 = 0.0;
+  for (const TimedPoint& p : scan_src_) {
+    lever_.push_back((p.t / period_s_ - lever_origin) * to_period_ * lever_scale);
+    range2 += p.p.squaredNorm();
   }
+  rms_range_ = scan_src_.empty() ? 0.0 : std::sqrt(range2 / static_cast<double>(scan_src_.size()));
   scan_motion_.lever = lever_;
   const Eigen::Isometry3d predicted = prev_pose_ * motion;
   const Eigen::Isometry3d predicted_deskew =  // over one period

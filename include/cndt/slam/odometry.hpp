@@ -392,12 +392,9 @@ class ConsensusOdometry {
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
   // deskew_acceleration for this scan: the deskew motion is (1 + extrapolate_) times the motion
-  // from prev_pose_ less extrapolate_ times the last one (prev_turn_, prev_shift_: rotation
-  // vector and translation per period); 0 when the last match was not clean or the option is
-  // off, 0.5 for equal time steps.
+  // from prev_pose_ less extrapolate_ times prev_motion_ (rotation vectors and translations per
+  // period); 0 when the last match was not clean or the option is off, 0.5 for equal steps.
   double extrapolate_ = 0.0;
-  Eigen::Vector3d prev_turn_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d prev_shift_ = Eigen::Vector3d::Zero();
   std::size_t clean_run_ = 0;  // matches since the last one flagged degenerate
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
