@@ -512,6 +512,8 @@ void ConsensusOdometry::commit() {
 OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   commit();  // the previous scan's, when the caller has not
   OdometryResult res;
+  // The match is degenerate (as kOdomDegenerate without the hysteresis of its report).
+  bool degenerate_match = false;
   res.stamp = scan.stamp;
   if (!scan.complete()) res.flags |= kOdomScanIncomplete;
   // The sensor clock jumped (back, or on while the data kept coming) before this revolution:
@@ -715,13 +717,21 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     res.cm = consensus.cm;
     // Cm weighs the directions to the voxels, not what their surfaces constrain: a corridor's
     // walls, floor and ceiling surround the sensor (Cm stays high) but leave its axis free.
-    const bool ill_posed = degenerate(res.conditioning);
-    if (ill_posed) res.cm = 0.0;
     // A Cm of 0 for want of voxels with a Cv says nothing of the match: flagged apart, so
     // that a sparse scan whose match is well posed still counts as clean.
-    if (res.cm <= 0.0) {
-      res.flags |= !consensus.measured && !ill_posed ? kOdomCmUnmeasured : kOdomDegenerate;
+    degenerate_match = degenerate(res.conditioning) || (res.cm <= 0.0 && consensus.measured);
+    // Reported with hysteresis (degenerate_clear_conditioning): a match just past the threshold
+    // right after a degenerate one is reported degenerate too, but counts as clean below (the
+    // prediction, the patches), as it would without the hysteresis.
+    const bool held =
+        degenerate_latched_ && !(res.conditioning >= options_.degenerate_clear_conditioning);
+    if (degenerate_match || held) {
+      res.flags |= kOdomDegenerate;
+      res.cm = 0.0;
+    } else if (res.cm <= 0.0) {
+      res.flags |= kOdomCmUnmeasured;
     }
+    degenerate_latched_ = (res.flags & kOdomDegenerate) != 0;
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.
   res.dt = dt;
@@ -735,9 +745,9 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
   }
   // The next prediction is trusted when this scan's match was clean: a scan rematched, flagged
   // degenerate or not matched may carry a wrong motion, and gating on it would keep it.
-  prediction_trusted_ =
-      (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomDegenerate | kOdomRematched)) == 0;
-  clean_run_ = (res.flags & kOdomDegenerate) != 0 ? 0 : clean_run_ + 1;
+  prediction_trusted_ = !degenerate_match &&
+                        (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomRematched)) == 0;
+  clean_run_ = degenerate_match ? 0 : clean_run_ + 1;
   have_prev2_ = true;
   newest_unskewed_ = false;
   reference_due_ = true;  // at prev_pose_, set next

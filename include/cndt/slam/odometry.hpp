@@ -177,6 +177,15 @@ struct OdometryOptions {
   /// corridor's median ratio is about 0.0014; street, campus and loop drives have medians of
   /// 0.05-0.15.
   double degenerate_conditioning = 0.003;
+  /// Hysteresis of the report: after a pose flagged kOdomDegenerate, the next ones are flagged
+  /// too (Cm 0) until a match's ratio reaches this. In a corridor the ratio wanders about the
+  /// threshold (median 0.0011, 99th percentile 0.010), and the matches that crossed it were
+  /// published as valid with a motion as wrong as their flagged neighbours'; well-posed drives
+  /// stay far above it (60 s street, campus, loop: 1st percentile 0.045-0.061;
+  /// docs/odometry.md, "Degeneracy check"). Only the report: such a match counts as clean for
+  /// the odometry's own decisions (the prediction's trust, the level patches). At or below
+  /// degenerate_conditioning: no hysteresis.
+  double degenerate_clear_conditioning = 0.01;
   /// Largest acceleration the platform can have, m/s^2 (about 1 g; 0 = no check). A match that
   /// lands farther from the constant-velocity prediction than a dt^2 (0.1 m at 10 m/s^2 and
   /// 10 Hz) has jumped to a wrong minimum (rings that move with the sensor hold a young reference
@@ -395,7 +404,8 @@ class ConsensusOdometry {
   // from prev_pose_ less extrapolate_ times prev_motion_ (rotation vectors and translations per
   // period); 0 when the last match was not clean or the option is off, 0.5 for equal steps.
   double extrapolate_ = 0.0;
-  std::size_t clean_run_ = 0;  // matches since the last one flagged degenerate
+  std::size_t clean_run_ = 0;        // matches since the last one flagged degenerate
+  bool degenerate_latched_ = false;  // the last scan matched was flagged degenerate
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;
