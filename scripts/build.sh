@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Configures and builds one build tree. Usage: scripts/build.sh DIR [--target T] [cmake args...]
+# Configures and builds one build tree. Usage: scripts/build.sh DIR [--target T]... [cmake args...]
 set -euo pipefail
 dir=$1; shift
 target=()
-if [[ "${1:-}" == "--target" ]]; then target=(--target "$2"); shift 2; fi
+while [[ "${1:-}" == "--target" ]]; do target+=(--target "$2"); shift 2; done
 export CCACHE_DIR=${CCACHE_DIR:-$HOME/.cache/cndt-ccache}
 # Paths inside the checkout are hashed relative to it (and the build directory is not hashed),
 # so a fresh clone elsewhere reuses what an earlier clone compiled.
