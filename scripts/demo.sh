@@ -7,14 +7,12 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 bash scripts/deps.sh build
-if [[ -f build/release/CMakeCache.txt ]]; then
-  # A tree configured before (with tests or benchmarks, say) keeps its options: only the two
-  # programs the demo runs are built.
-  bash scripts/build.sh build/release --target cndt --target cndtd -DCMAKE_BUILD_TYPE=Release
-else
-  bash scripts/build.sh build/release -DCMAKE_BUILD_TYPE=Release -DCNDT_BUILD_TESTS=OFF \
-    -DCNDT_BUILD_BENCHMARKS=OFF
-fi
+# Only the two programs the demo runs. A tree configured before (with tests or benchmarks, say)
+# keeps its options; a new one leaves tests and benchmarks out.
+fresh=()
+[[ -f build/release/CMakeCache.txt ]] || fresh=(-DCNDT_BUILD_TESTS=OFF -DCNDT_BUILD_BENCHMARKS=OFF)
+bash scripts/build.sh build/release --target cndt --target cndtd -DCMAKE_BUILD_TYPE=Release \
+  "${fresh[@]}"
 bin=./build/release/src/apps
 out=out/demo
 rm -rf "$out"
