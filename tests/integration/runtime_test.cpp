@@ -241,14 +241,19 @@ TEST(Runtime, ThreadedReplayEqualsASingleThreadedLoopEveryTime) {
   }
 }
 
-// Holds the mapper inside its first keyframe until the odometry has done `n` more scans
-// (at most 60 s).
+// Holds the mapper inside its first keyframe until the odometry has done `n` scans past a mark
+// (at most 60 s): past the scans done when the keyframe closed (kNow: live, where the odometry
+// never waits and the mapper's buffer fills meanwhile), or past the scan the mapper is on
+// (kMapper: replay, where the odometry may already be that far ahead when the keyframe closes,
+// on a loaded machine, and can get no further than the keyframe ring ahead of the mapper).
 struct MapperHold {
-  explicit MapperHold(std::uint64_t n) : more_scans(n) {}
+  enum class From { kNow, kMapper };
+  MapperHold(std::uint64_t n, From f) : more_scans(n), from(f) {}
   void attach(Pipeline& p) {
-    p.on_keyframe([this, &p](const slam::Mapper&, double) {
+    p.on_keyframe([this, &p](const slam::Mapper& m, double) {
       if (held.exchange(true)) return;  // the first keyframe only
-      const std::uint64_t at = p.stats().scans_done;
+      // The mapper is on the scan after the keyframe's, whose arrival closed it.
+      const std::uint64_t at = from == From::kNow ? p.stats().scans_done : m.refined().size() + 1;
       const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
       while (std::chrono::steady_clock::now() < until) {
         if (p.stats().scans_done >= at + more_scans) {
@@ -260,6 +265,7 @@ struct MapperHold {
     });
   }
   std::uint64_t more_scans;
+  From from;
   std::atomic<bool> held{false}, ran_ahead{false};
 };
 
@@ -273,7 +279,7 @@ TEST(Runtime, ReplayOdometryRunsAheadOfABusyMapper) {
   o.keyframe_ring = 8;
   const Reference ref = single_threaded(o, scans);
   PosePublisher publisher{PublisherOptions{}};
-  MapperHold hold(3);
+  MapperHold hold(3, MapperHold::From::kMapper);
   const auto results =
       run_pipeline(o, publisher, scans, nullptr, 150'000, [&](Pipeline& p) { hold.attach(p); });
   EXPECT_TRUE(hold.held);
@@ -303,7 +309,7 @@ TEST(Runtime, LiveMapperBufferFullSkipsScansForTheMapperOnly) {
   o.keyframe_ring_points = 1000;  // raised to max_points: 30k, two scans
   PosePublisher publisher{PublisherOptions{}};
   PipelineStats st;
-  MapperHold hold(4);
+  MapperHold hold(4, MapperHold::From::kNow);
   const auto results =
       run_pipeline(o, publisher, scans, &st, 30'000, [&](Pipeline& p) { hold.attach(p); });
   EXPECT_TRUE(hold.held);
