@@ -48,7 +48,7 @@ Run run_sequence(cndt::slam::OdometryMode mode, cndt::ndt::TaskRunner* runner = 
     benchmark::DoNotOptimize(res.pose);
     r.ms.push_back(std::chrono::duration<double, std::milli>(t2 - t0).count());
     r.commit_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
-    // Scans enter the local map 2 m apart: every third scan at this drive's speed.
+    // Scans enter the local map 1 m apart: about every other scan at this drive's speed.
     if (odometry.reference_grid().version() != version) r.update_ms.push_back(r.commit_ms.back());
     iterations += res.coarse_iterations + res.fine_iterations;
   }

@@ -34,9 +34,7 @@ struct OdometryOptions {
   /// Points the local map's scans hold together (one buffer, allocated once; at least
   /// max_scan_points). When a new scan does not fit, the oldest scans leave until it does.
   std::size_t local_map_points = 1'500'000;
-  /// 2 m: two thirds of the reference updates of 1 m at 8 m/s, about half at low speed, at the
-  /// same accuracy (docs/odometry.md, "Why 60 scans 2 m apart").
-  double map_min_translation = 2.0;  ///< m
+  double map_min_translation = 1.0;  ///< m
   double map_min_rotation = 0.035;   ///< rad (2 deg)
   /// Until the local map holds this many scans, they enter after map_warmup_translation.
   std::size_t map_warmup_scans = 10;
