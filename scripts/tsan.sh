@@ -8,7 +8,7 @@
 set -euo pipefail
 build=$1
 export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1"
-"$build/tests/runtime_tests" --gtest_filter='Runtime.Live*:Runtime.ReplayOdometryRunsAhead*:AllocCounter.*:ScoreThreads.*'
+"$build/tests/runtime_tests" --gtest_filter='Runtime.Live*:Runtime.ReplayOdometryRunsAhead*:Runtime.ReplayLosesNoScan*:AllocCounter.*:ScoreThreads.*'
 "$build/tests/udp_live_tests"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

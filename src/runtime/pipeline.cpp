@@ -88,6 +88,8 @@ struct Pipeline::Impl {
   std::function<void(const slam::Mapper&, double)> keyframe_callback;
   void (*scan_callback)(void*) = nullptr;
   void* scan_context = nullptr;
+  void (*mapper_scan_callback)(void*) = nullptr;
+  void* mapper_scan_context = nullptr;
 
   std::atomic<bool> input_closed{false}, drain{true}, stopping{false};
   std::atomic<bool> odometry_done{false}, mapper_done{false};
@@ -376,12 +378,14 @@ struct Pipeline::Impl {
     const auto pts = odometry.scan_points();
     const std::size_t n = std::min(pts.size(), key_pool.size());
     core::RingRegion region;
+    // A free slot is not yet room in the ring: the mapper gives its scan's slot back before it
+    // takes the next scan out of the ring, so the ring may still be full.
     const auto ready = [&] {
       if (!held_key) {
         std::uint32_t k = 0;
         if (key_free.pop(k)) held_key = k;
       }
-      return held_key && key_room(n, region);
+      return held_key && key_full.write_available() > 0 && key_room(n, region);
     };
     if (!ready() && (options.live || !wait_for(ready))) {
       mapper_dropped.fetch_add(1, std::memory_order_relaxed);
@@ -426,6 +430,7 @@ struct Pipeline::Impl {
       }
       acks.push(Ack{key.sequence, mapper->correction()});
       key_free.push(k);
+      if (mapper_scan_callback != nullptr) mapper_scan_callback(mapper_scan_context);
     }
     if (!stopping.load() || input_closed.load()) {
       const auto t0 = Clock::now();
@@ -464,6 +469,11 @@ void Pipeline::on_keyframe(std::function<void(const slam::Mapper&, double)> call
 void Pipeline::on_scan_done(void (*callback)(void*), void* context) {
   impl_->scan_callback = callback;
   impl_->scan_context = context;
+}
+
+void Pipeline::on_mapper_scan_done(void (*callback)(void*), void* context) {
+  impl_->mapper_scan_callback = callback;
+  impl_->mapper_scan_context = context;
 }
 
 void Pipeline::start() {

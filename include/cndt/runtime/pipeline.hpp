@@ -95,6 +95,9 @@ class Pipeline {
   void on_keyframe(std::function<void(const slam::Mapper&, double ms)> callback);
   /// Before start(): called on the odometry thread after each scan (must not allocate).
   void on_scan_done(void (*callback)(void*), void* context);
+  /// Before start(): called on the mapper thread after each scan it took, once the scan's slot
+  /// is back in the pool and before it takes the next.
+  void on_mapper_scan_done(void (*callback)(void*), void* context);
 
   void start();
 
