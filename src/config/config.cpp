@@ -186,6 +186,12 @@ const std::vector<Field>& fields() {
        "Points the local-map scans hold together (one buffer, allocated once, at least "
        "max_points); when a new scan does not fit, the oldest scans leave until it does.",
        "points", 1000, 100'000'000},
+      {"odometry", "map_min_translation_m", CNDT_REF(odometry.map_min_translation_m),
+       "A scan enters the local map once the sensor has moved this far (or turned 2 deg) since "
+       "the last one that did, so the map spans local_map_scans times this distance. 2 m was "
+       "measured level or better on typical drives and 1.5 ms a scan cheaper at 8 m/s, but it "
+       "lost steeply tilted mounts and noisy slow spins (docs/odometry.md).",
+       "m", 0, 100},
       {"odometry", "map_admit_distance_m", CNDT_REF(odometry.map_admit_distance_m),
        "A scan taken into the local map is matched against only once the predicted pose is this "
        "far from where it was taken (or turned 2 deg from it): near its own pose a scan's ring "

@@ -92,6 +92,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.deskew_refinements = static_cast<int>(od.deskew_refinements);
   o.local_map_scans = static_cast<std::size_t>(od.local_map_scans);
   o.local_map_points = static_cast<std::size_t>(od.local_map_points);
+  o.map_min_translation = od.map_min_translation_m;
   o.map_admit_distance = od.map_admit_distance_m;
   o.max_map_voxels = static_cast<std::size_t>(od.max_map_voxels);
   o.min_points = static_cast<std::size_t>(od.min_points);

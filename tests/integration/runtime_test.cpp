@@ -11,10 +11,12 @@
 #include <thread>
 
 #include "cndt/can/can_bus.hpp"
+#include "cndt/config/config.hpp"
 #include "cndt/runtime/alloc_counter.hpp"
 #include "cndt/runtime/pipeline.hpp"
 #include "cndt/runtime/publisher.hpp"
 #include "cndt/runtime/score_threads.hpp"
+#include "cndt/runtime/setup.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/correction_blend.hpp"
 #include "cndt/vlp16/driver.hpp"
@@ -53,6 +55,35 @@ TEST(ScoreThreads, EveryTaskRunsOnceAndIsDoneWhenRunReturns) {
       if (run % 8 == 0) std::this_thread::sleep_for(std::chrono::microseconds(pause_us(rng)));
     }
   }
+}
+
+// The configuration's local-map keys reach the odometry, and left out they are the odometry's
+// own defaults.
+TEST(Setup, LocalMapKeysReachTheOdometry) {
+  auto defaults = make_setup(config::Config{});
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  const slam::OdometryOptions library;
+  const slam::OdometryOptions& d = defaults.value().pipeline.odometry;
+  EXPECT_EQ(d.local_map_scans, library.local_map_scans);
+  EXPECT_EQ(d.local_map_points, library.local_map_points);
+  EXPECT_EQ(d.map_min_translation, library.map_min_translation);
+  EXPECT_EQ(d.map_admit_distance, library.map_admit_distance);
+  auto c = config::parse_config(R"(
+[odometry]
+local_map_scans = 30
+local_map_points = 900000
+map_min_translation_m = 2.0
+map_admit_distance_m = 0.7
+)",
+                                "local_map.toml");
+  ASSERT_TRUE(c) << c.error().message;
+  auto set = make_setup(c.value());
+  ASSERT_TRUE(set) << set.error().message;
+  const slam::OdometryOptions& o = set.value().pipeline.odometry;
+  EXPECT_EQ(o.local_map_scans, 30u);
+  EXPECT_EQ(o.local_map_points, 900'000u);
+  EXPECT_EQ(o.map_min_translation, 2.0);
+  EXPECT_EQ(o.map_admit_distance, 0.7);
 }
 
 // The scans of a simulated drive, as the driver assembles them.

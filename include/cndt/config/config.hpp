@@ -48,6 +48,7 @@ struct Config {
     std::int64_t deskew_refinements = 2;
     std::int64_t local_map_scans = 60;
     std::int64_t local_map_points = 1'500'000;
+    double map_min_translation_m = 1.0;
     double map_admit_distance_m = 0.5;
     std::int64_t max_map_voxels = 400'000;
     std::int64_t min_points = 200;
