@@ -8,6 +8,7 @@
 #include <fstream>
 #include <functional>
 #include <random>
+#include <string>
 #include <thread>
 
 #include "cndt/can/can_bus.hpp"
@@ -246,6 +247,34 @@ Reference single_threaded(const PipelineOptions& o, const std::vector<core::Scan
   return ref;
 }
 
+// Expects the poses `results` published to be those of `ref`, as many and bit for bit (the same
+// operations in the same order), with the same Cm.
+void expect_reference_poses(const std::vector<ScanResult>& results, const Reference& ref,
+                            const std::string& what) {
+  std::size_t k = 0;
+  for (const auto& r : results) {
+    if (!r.published_pose) continue;
+    if (k >= ref.published.size()) {
+      ADD_FAILURE() << what << ": more poses than the single-threaded loop's "
+                    << ref.published.size();
+      break;
+    }
+    EXPECT_TRUE(r.published.matrix() == ref.published[k].matrix()) << what << " pose " << k;
+    EXPECT_EQ(r.odometry.cm, ref.cm[k]) << what << " pose " << k;
+    ++k;
+  }
+  EXPECT_EQ(k, ref.published.size()) << what;
+}
+
+// The scans of `results` the odometry hands to the mapper: those with a pose and enough points.
+std::uint64_t handed_to_mapper(const std::vector<ScanResult>& results) {
+  std::uint64_t n = 0;
+  for (const auto& r : results) {
+    if ((r.odometry.flags & (slam::kOdomSkipped | slam::kOdomTooFewPoints)) == 0) ++n;
+  }
+  return n;
+}
+
 TEST(Runtime, ThreadedReplayEqualsASingleThreadedLoopEveryTime) {
   const auto scans = simulated_scans(sim::SceneKind::kStreet, 8.0);
   PipelineOptions o;
@@ -266,17 +295,7 @@ TEST(Runtime, ThreadedReplayEqualsASingleThreadedLoopEveryTime) {
     ro.scoring_threads = static_cast<std::size_t>(run + 1);
     if (run == 2) ro.keyframe_ring_points = 1000;
     const auto results = run_pipeline(ro, publisher, scans, &stats, run == 2 ? 30'000 : 150'000);
-    std::size_t k = 0;
-    for (const auto& r : results) {
-      if (!r.published_pose) continue;
-      ASSERT_LT(k, ref.published.size());
-      // Bit for bit: the same operations in the same order.
-      EXPECT_TRUE(r.published.matrix() == ref.published[k].matrix())
-          << "run " << run << " pose " << k;
-      EXPECT_EQ(r.odometry.cm, ref.cm[k]);
-      ++k;
-    }
-    EXPECT_EQ(k, ref.published.size());
+    expect_reference_poses(results, ref, "run " + std::to_string(run));
     EXPECT_GE(stats.keyframes, 2u);
     EXPECT_EQ(stats.scans_dropped + stats.mapper_dropped + stats.results_dropped, 0u);
   }
@@ -350,14 +369,7 @@ TEST(Runtime, ReplayOdometryRunsAheadOfABusyMapper) {
       run_pipeline(o, publisher, scans, nullptr, 150'000, [&](Pipeline& p) { hold.attach(p); });
   EXPECT_TRUE(hold.held);
   EXPECT_TRUE(hold.ran_ahead) << "the odometry waited for the mapper";
-  std::size_t k = 0;
-  for (const auto& res : results) {
-    if (!res.published_pose) continue;
-    ASSERT_LT(k, ref.published.size());
-    EXPECT_TRUE(res.published.matrix() == ref.published[k].matrix()) << "pose " << k;
-    ++k;
-  }
-  EXPECT_EQ(k, ref.published.size());
+  expect_reference_poses(results, ref, "replay");
 }
 
 // Replay with a keyframe ring of two: when the mapper pauses between scans (preempted on a
@@ -378,17 +390,8 @@ TEST(Runtime, ReplayLosesNoScanWhenTheMapperPausesBetweenScans) {
       run_pipeline(o, publisher, scans, nullptr, 150'000, [&](Pipeline& p) { pause.attach(p); });
   EXPECT_TRUE(pause.held);
   EXPECT_TRUE(pause.ran_ahead);
-  std::size_t k = 0;
-  std::uint64_t handed = 0;  // every scan with a pose and enough points goes to the mapper
-  for (const auto& res : results) {
-    if ((res.odometry.flags & (slam::kOdomSkipped | slam::kOdomTooFewPoints)) == 0) ++handed;
-    if (!res.published_pose) continue;
-    ASSERT_LT(k, ref.published.size());
-    EXPECT_TRUE(res.published.matrix() == ref.published[k].matrix()) << "pose " << k;
-    ++k;
-  }
-  EXPECT_EQ(k, ref.published.size());
-  EXPECT_EQ(pause.taken, handed);
+  expect_reference_poses(results, ref, "replay");
+  EXPECT_EQ(pause.taken, handed_to_mapper(results));
 }
 
 // Live, the same pause: the odometry goes on, and each scan is either mapped or counted as not
@@ -409,13 +412,8 @@ TEST(Runtime, LiveLosesNoScanWhenTheMapperPausesBetweenScans) {
   EXPECT_TRUE(pause.held);
   EXPECT_TRUE(pause.ran_ahead);
   ASSERT_EQ(st.scans_done, scans.size());
-  std::uint64_t handed = 0;  // every scan with a pose and enough points goes to the mapper
-  for (const auto& res : results) {
-    const auto f = res.odometry.flags;
-    if ((f & (slam::kOdomSkipped | slam::kOdomTooFewPoints)) == 0) ++handed;
-  }
   EXPECT_GE(st.mapper_dropped, 1u);
-  EXPECT_EQ(pause.taken + st.mapper_dropped, handed);
+  EXPECT_EQ(pause.taken + st.mapper_dropped, handed_to_mapper(results));
   EXPECT_GT(pause.taken, pause.at + 2) << "the mapper took no scan after the pause";
 }
 
