@@ -34,6 +34,8 @@ struct OdometryOptions {
   /// Points the local map's scans hold together (one buffer, allocated once; at least
   /// max_scan_points). When a new scan does not fit, the oldest scans leave until it does.
   std::size_t local_map_points = 1'500'000;
+  /// 1 m: 2 m costs less time but lost steeply tilted mounts (docs/odometry.md, "Why 60 scans
+  /// 1 m apart"; configuration key odometry.map_min_translation_m).
   double map_min_translation = 1.0;  ///< m
   double map_min_rotation = 0.035;   ///< rad (2 deg)
   /// Until the local map holds this many scans, they enter after map_warmup_translation.
