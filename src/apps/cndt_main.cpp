@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   cndt::cli::RecordArgs record;
   cndt::cli::ReplayArgs replay;
   cndt::cli::EvalArgs eval;
+  cndt::cli::SweepArgs sweep;
   cndt::cli::MapArgs map;
   cndt::cli::ListenArgs listen;
   cndt::cli::register_info(app, info);
@@ -32,6 +33,7 @@ int main(int argc, char** argv) {
   cndt::cli::register_record(app, record);
   cndt::cli::register_replay(app, replay);
   cndt::cli::register_eval(app, eval);
+  cndt::cli::register_sweep(app, sweep);
   cndt::cli::register_map(app, map);
   cndt::cli::register_listen(app, listen);
   try {
@@ -47,6 +49,7 @@ int main(int argc, char** argv) {
   if (app.got_subcommand("record")) return cndt::cli::run_record(record);
   if (app.got_subcommand("replay")) return cndt::cli::run_replay(replay);
   if (app.got_subcommand("eval")) return cndt::cli::run_eval(eval);
+  if (app.got_subcommand("sweep")) return cndt::cli::run_sweep(sweep);
   if (app.got_subcommand("map")) return cndt::cli::run_map(map);
   if (app.got_subcommand("listen")) return cndt::cli::run_listen(listen);
   return cndt::core::kExitUsage;

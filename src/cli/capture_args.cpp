@@ -28,6 +28,66 @@ void warn_if_cut_short(const CaptureReport& r) {
   }
 }
 
+void add_odometry_input_options(CLI::App& cmd, OdometryInputArgs& a) {
+  cmd.add_option("capture", a.capture,
+                 "pcap or pcapng file, or a folder of clouds (KITTI .bin or PCD, in name "
+                 "order; scan times from its times.txt if present, else --scan-period apart)")
+      ->required();
+  cmd.add_option("--scan-period", a.scan_period_s,
+                 "Seconds between scans of a cloud folder without times.txt")
+      ->capture_default_str()
+      ->check(CLI::Range(0.001, 10.0));
+  cmd.add_option("--mode", a.mode,
+                 "consensus (coarse match, Cv cut at eta, fine match) or naive (one match over "
+                 "all voxels)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"consensus", "naive"}));
+  cmd.add_option("--reference", a.reference,
+                 "What each scan is matched against: local-map (recent scans merged) or "
+                 "previous-scan (the paper's choice)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"local-map", "previous-scan"}));
+  cmd.add_option("--config", a.config,
+                 "Read the settings from this cndtd configuration file (config/cndtd.toml "
+                 "documents every key); options given here override it");
+  add_capture_options(cmd, a.capture_args);
+}
+
+core::Result<config::Config> odometry_config(const OdometryInputArgs& a, const CLI::App* command) {
+  const CaptureArgs& ca = a.capture_args;
+  config::Config c;
+  if (!a.config.empty()) {
+    auto loaded = config::load_config(a.config);
+    if (!loaded) return loaded.error();
+    c = std::move(loaded.value());
+  }
+  const auto given = [&](const char* option) {
+    return command == nullptr || command->count(option) > 0;
+  };
+  if (given("--model")) c.sensor.model = ca.model;
+  if (given("--sensor-ip")) c.sensor.sensor_ip = ca.sensor_ip;
+  if (given("--data-port")) c.sensor.data_port = ca.data_port;
+  if (given("--position-port")) c.sensor.position_port = ca.position_port;
+  if (given("--cut-angle")) c.sensor.cut_angle_deg = ca.cut_angle_deg;
+  if (given("--no-fov-cut")) c.sensor.cut_at_fov_gap = !ca.no_fov_cut;
+  if (given("--min-range")) c.sensor.min_range_m = ca.min_range_m;
+  if (given("--max-range")) c.sensor.max_range_m = ca.max_range_m;
+  if (given("--no-vertical-offsets")) c.sensor.vertical_offsets = !ca.no_vertical_offsets;
+  if (given("--max-points")) c.sensor.max_points = static_cast<std::int64_t>(ca.max_points);
+  if (given("--mode")) c.odometry.mode = a.mode;
+  if (given("--reference")) c.odometry.reference = a.reference;
+  // The command line's capture checks (ranges, model names, addresses) on the result.
+  CaptureArgs check = ca;
+  check.model = c.sensor.model;
+  check.sensor_ip = c.sensor.sensor_ip;
+  check.min_range_m = c.sensor.min_range_m;
+  check.max_range_m = c.sensor.max_range_m;
+  check.cut_angle_deg = c.sensor.cut_angle_deg;
+  check.max_points = static_cast<std::size_t>(c.sensor.max_points);
+  if (auto ok = to_capture_options(check); !ok) return ok.error();
+  return c;
+}
+
 void add_capture_options(CLI::App& cmd, CaptureArgs& a) {
   cmd.add_option("--model", a.model,
                  "Sensor model: auto (product byte; packet period separates HDL-32E from early "

@@ -6,7 +6,6 @@
 #include <sys/resource.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -17,7 +16,6 @@
 #include <sstream>
 #include <thread>
 
-#include "cndt/cli/cloud_io.hpp"
 #include "cndt/cli/commands.hpp"
 #include "cndt/config/config.hpp"
 #include "cndt/core/percentile.hpp"
@@ -69,25 +67,9 @@ bool given(const ReplayArgs& a, const char* option) {
 // The configuration the replay runs with: the file's (or the defaults), then every option
 // given on the command line on top.
 core::Result<config::Config> replay_config(const ReplayArgs& a) {
-  config::Config c;
-  if (!a.config.empty()) {
-    auto loaded = config::load_config(a.config);
-    if (!loaded) return loaded.error();
-    c = std::move(loaded.value());
-  }
-  const CaptureArgs& ca = a.capture_args;
-  if (given(a, "--model")) c.sensor.model = ca.model;
-  if (given(a, "--sensor-ip")) c.sensor.sensor_ip = ca.sensor_ip;
-  if (given(a, "--data-port")) c.sensor.data_port = ca.data_port;
-  if (given(a, "--position-port")) c.sensor.position_port = ca.position_port;
-  if (given(a, "--cut-angle")) c.sensor.cut_angle_deg = ca.cut_angle_deg;
-  if (given(a, "--no-fov-cut")) c.sensor.cut_at_fov_gap = !ca.no_fov_cut;
-  if (given(a, "--min-range")) c.sensor.min_range_m = ca.min_range_m;
-  if (given(a, "--max-range")) c.sensor.max_range_m = ca.max_range_m;
-  if (given(a, "--no-vertical-offsets")) c.sensor.vertical_offsets = !ca.no_vertical_offsets;
-  if (given(a, "--max-points")) c.sensor.max_points = static_cast<std::int64_t>(ca.max_points);
-  if (given(a, "--mode")) c.odometry.mode = a.mode;
-  if (given(a, "--reference")) c.odometry.reference = a.reference;
+  auto loaded = odometry_config(a.input, a.command);
+  if (!loaded) return loaded.error();
+  config::Config c = std::move(loaded.value());
   if (given(a, "--jitter-seed")) c.odometry.guess_jitter_seed = a.jitter_seed;
   if (given(a, "--mapper")) c.mapper.enabled = c.mapper.enabled || a.mapper;
   if (given(a, "--map")) c.mapper.load = a.map;
@@ -100,15 +82,6 @@ core::Result<config::Config> replay_config(const ReplayArgs& a) {
     c.mapper.initial_pose = pose.value();
   }
   if (!a.udp_out.empty()) c.udp.destinations.push_back(a.udp_out);
-  // The command line's capture checks (ranges, model names, addresses).
-  CaptureArgs check = ca;
-  check.model = c.sensor.model;
-  check.sensor_ip = c.sensor.sensor_ip;
-  check.min_range_m = c.sensor.min_range_m;
-  check.max_range_m = c.sensor.max_range_m;
-  check.cut_angle_deg = c.sensor.cut_angle_deg;
-  check.max_points = static_cast<std::size_t>(c.sensor.max_points);
-  if (auto ok = to_capture_options(check); !ok) return ok.error();
   if (!a.udp_out.empty() && !runtime::split_endpoint(a.udp_out)) {
     return core::Error{core::kExitUsage,
                        fmt::format("--udp-out '{}': expected ADDRESS:PORT (e.g. 127.0.0.1:5600, "
@@ -124,20 +97,6 @@ struct MapperOutputs {
   std::vector<double> map_cm, mapper_ms;
 };
 
-// One cloud file where a capture or a folder of clouds belongs: says what to pass instead.
-std::optional<core::Error> check_not_one_cloud(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) return std::nullopt;
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  if (ext != ".bin" && ext != ".pcd" && ext != ".ply") return std::nullopt;
-  const std::string folder = std::filesystem::path(path).parent_path().string();
-  return core::Error{
-      core::kExitUsage,
-      fmt::format("'{}' is one cloud file: replay takes a pcap or pcapng capture, or a folder of "
-                  "clouds with one scan per file (KITTI .bin or PCD, in name order), such as '{}'",
-                  path, folder.empty() ? "." : folder)};
-}
 }  // namespace
 
 void register_replay(CLI::App& app, ReplayArgs& a) {
@@ -148,25 +107,8 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
       "Cm, iterations, voxels before/after the Cv cut, points, milliseconds, flags) "
       "summary.json and can.log (every CAN frame cndtd would send, candump format; "
       "config/cndt.dbc describes them)");
-  cmd->add_option("capture", a.capture,
-                  "pcap or pcapng file, or a folder of clouds (KITTI .bin or PCD, in name "
-                  "order; scan times from its times.txt if present, else --scan-period apart)")
-      ->required();
-  cmd->add_option("--scan-period", a.scan_period_s,
-                  "Seconds between scans of a cloud folder without times.txt")
-      ->capture_default_str()
-      ->check(CLI::Range(0.001, 10.0));
+  add_odometry_input_options(*cmd, a.input);
   cmd->add_option("--out", a.out_dir, "Output folder (created if missing)")->required();
-  cmd->add_option("--mode", a.mode,
-                  "consensus (coarse match, Cv cut at eta, fine match) or naive (one match over "
-                  "all voxels)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"consensus", "naive"}));
-  cmd->add_option("--reference", a.reference,
-                  "What each scan is matched against: local-map (recent scans merged) or "
-                  "previous-scan (the paper's choice)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"local-map", "previous-scan"}));
   cmd->add_option("--jitter-seed", a.jitter_seed,
                   "Evaluation only: move every match's initial guess by at most 0.5e-9 m / rad "
                   "per coordinate, drawn from this seed (0: off). Replays under a few seeds show "
@@ -174,9 +116,6 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
                   "(docs/accuracy.md)")
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{0}, std::int64_t{1'000'000'000}));
-  cmd->add_option("--config", a.config,
-                  "Read the settings from this cndtd configuration file (config/cndtd.toml "
-                  "documents every key); options given here override it");
   cmd->add_flag("--realtime", a.realtime,
                 "Deliver the capture's packets at their recorded pace (default: as fast as the "
                 "odometry takes them)");
@@ -214,14 +153,13 @@ void register_replay(CLI::App& app, ReplayArgs& a) {
   cmd->add_option("--udp-out", a.udp_out,
                   "Also send every pose as a UDP datagram (docs/protocol.md) to ADDRESS:PORT, "
                   "e.g. 127.0.0.1:5600 (see cndt listen --udp)");
-  add_capture_options(*cmd, a.capture_args);
 }
 
 int run_replay(const ReplayArgs& a) {
   auto cfg = replay_config(a);
   if (!cfg) return fail(cfg.error());
   const config::Config& c = cfg.value();
-  if (auto err = check_not_one_cloud(a.capture)) return fail(*err);
+  if (auto err = check_not_one_cloud(a.input.capture)) return fail(*err);
   auto setup_r = runtime::make_setup(c);
   if (!setup_r) return fail(setup_r.error());
   runtime::Setup& setup = setup_r.value();
@@ -286,49 +224,19 @@ int run_replay(const ReplayArgs& a) {
   std::optional<core::Error> input_error;
   CaptureReport report;
   std::thread input([&] {
-    struct Feed {
-      runtime::Pipeline* pipeline;
-      std::size_t max_scans, pushed = 0;
-    } feed{&pipeline, a.max_scans};
+    // After stop() (a failed runtime) the pipeline takes no more scans.
     const auto push = [](const core::Scan& scan, void* ctx) {
-      auto& f = *static_cast<Feed*>(ctx);
-      if (f.max_scans > 0 && f.pushed >= f.max_scans) return;
-      if (f.pipeline->push(scan, std::chrono::steady_clock::now())) ++f.pushed;
+      static_cast<runtime::Pipeline*>(ctx)->push(scan, std::chrono::steady_clock::now());
     };
-    std::error_code ec;
-    if (std::filesystem::is_directory(a.capture, ec)) {
-      // A folder of clouds (KITTI .bin or PCD): one scan per file, no firing times (no deskew).
-      auto folder = list_cloud_folder(a.capture, a.scan_period_s);
-      if (!folder) {
-        input_error = folder.error();
-      } else {
-        core::Scan scan(setup.max_points);
-        const CloudFolder& f = folder.value();
-        for (std::size_t i = 0; i < f.files.size(); ++i) {
-          if (feed.max_scans > 0 && feed.pushed >= feed.max_scans) break;
-          if (auto err = read_cloud(f.files[i], scan)) {
-            input_error = *err;
-            break;
-          }
-          if (scan.points_dropped > 0) {
-            spdlog::warn("'{}': {} points beyond the capacity of {} dropped", f.files[i],
-                         scan.points_dropped, setup.max_points);
-          }
-          scan.stamp = std::chrono::nanoseconds(std::llround(f.times_s[i] * 1e9));
-          scan.sequence = i;
-          push(scan, &feed);
-        }
-      }
+    CaptureOptions co;
+    co.pcap = setup.pcap;
+    co.driver = setup.driver;
+    auto r = read_scans(a.input.capture, co, setup.max_points, a.input.scan_period_s, a.max_scans,
+                        push, &pipeline);
+    if (!r) {
+      input_error = r.error();
     } else {
-      CaptureOptions co;
-      co.pcap = setup.pcap;
-      co.driver = setup.driver;
-      auto r = read_capture(a.capture, co, push, &feed);
-      if (!r) {
-        input_error = r.error();
-      } else {
-        report = std::move(r.value());
-      }
+      report = std::move(r.value());
     }
     pipeline.close_input(true);
   });
@@ -427,7 +335,7 @@ int run_replay(const ReplayArgs& a) {
     return fail({core::kExitDataError,
                  fmt::format("no scan in '{}' ({} data packets, {} rejected{}; `cndt info` "
                              "shows the capture in detail)",
-                             a.capture, d.data_packets, d.rejected_total(), why)});
+                             a.input.capture, d.data_packets, d.rejected_total(), why)});
   }
   spdlog::info("{} scans in {:.1f} s; odometry {:.1f} ms median, {:.1f} ms p99; results in '{}'",
                scans, wall, core::percentile(ms, 0.5), core::percentile(ms, 0.99), a.out_dir);

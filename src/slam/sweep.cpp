@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "cndt/core/pose.hpp"
+#include "cndt/slam/downsample.hpp"
 
 namespace cndt::slam {
 
@@ -30,6 +31,16 @@ std::vector<SweepSample> sweep_cm(const ndt::VoxelGrid& reference,
     out.push_back(s);
   }
   return out;
+}
+
+std::vector<SweepSample> sweep_cm(const ConsensusOdometry& odometry, const OdometryResult& result,
+                                  int axis, std::span<const double> values) {
+  const OdometryOptions& o = odometry.options();
+  // Every count of test points a voxel can hold, as the odometry's own table.
+  const ndt::ChiSquareTable chi2(
+      max_centroids_per_voxel(o.voxel_size, o.map_cell, o.max_scan_points));
+  return sweep_cm(odometry.reference_grid(), odometry.scan_points(), result.pose, axis, values,
+                  chi2);
 }
 
 namespace {

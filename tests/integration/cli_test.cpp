@@ -163,6 +163,79 @@ TEST(CliReplay, WritesTrajectoryScansAndSummaryThatEvalReads) {
   }
 }
 
+// The Figure 9 experiment on a capture: Cm of one scan against its held reference as the scan
+// is moved away from its estimate. At 0 it is the Cm the replay reports for that scan.
+TEST(CliSweep, CmOfAScanMovedFromItsEstimateAndBadRequestsNamed) {
+  cndt::test::TempDir dir;
+  CliRun r = run("sim --scene street --duration 1.5 --out " + dir.file("s"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string capture = dir.file("s/capture.pcap");
+  r = run("sweep " + capture + " --out " + dir.file("w") + " --scan 10 --steps 10");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream csv(dir.file("w/sweep.csv"));
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "axis,perturbation,unit,cm,voxels_with_cv");
+  std::vector<std::string> axes;
+  std::vector<double> moved, cms;
+  while (std::getline(csv, line)) {
+    std::istringstream in(line);
+    std::string axis, value, unit, cm;
+    std::getline(in, axis, ',');
+    std::getline(in, value, ',');
+    std::getline(in, unit, ',');
+    std::getline(in, cm, ',');
+    EXPECT_EQ(unit, axis == "x" ? "m" : "deg") << line;
+    axes.push_back(axis);
+    moved.push_back(std::stod(value));
+    cms.push_back(std::stod(cm));
+    EXPECT_TRUE(cms.back() >= 0.0 && cms.back() <= 1.0) << line;
+  }
+  ASSERT_EQ(cms.size(), 22u);  // x, then roll: 0 to the largest move in 10 steps each
+  EXPECT_EQ(axes.front(), "x");
+  EXPECT_EQ(axes.back(), "roll");
+  EXPECT_DOUBLE_EQ(moved[10], 2.0);
+  EXPECT_DOUBLE_EQ(moved[21], 5.0);
+  EXPECT_GT(cms[0], 0.5);
+  EXPECT_EQ(cms[0], cms[11]);
+  // 2 m along the street (its ground and facades still agree there) and 5 deg of roll.
+  EXPECT_LT(cms[10], 0.8 * cms[0]);
+  EXPECT_LT(cms[21], 0.5 * cms[0]);
+  std::stringstream svg;
+  svg << std::ifstream(dir.file("w/sweep.svg")).rdbuf();
+  EXPECT_EQ(svg.str().rfind("<svg", 0), 0u);
+  std::size_t charts = 0;
+  for (auto at = svg.str().find("<polyline"); at != std::string::npos;
+       at = svg.str().find("<polyline", at + 1)) {
+    ++charts;
+  }
+  EXPECT_EQ(charts, 2u);
+  // The replay's Cm of that scan (row 10 of scans.csv) is the sweep's at 0.
+  r = run("replay " + capture + " --out " + dir.file("r") + " --max-scans 11");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream scans(dir.file("r/scans.csv"));
+  for (int i = 0; i <= 11; ++i) std::getline(scans, line);
+  const std::string replay_cm =
+      line.substr(line.find(',') + 1, line.find(',', line.find(',') + 1) - line.find(',') - 1);
+  EXPECT_DOUBLE_EQ(std::stod(replay_cm), cms[0]) << line;
+
+  // Scans that cannot be swept, and axes that do not exist: named, with the exit code.
+  r = run("sweep " + capture + " --out " + dir.file("w2") + " --scan 40");
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("has 16 scans: --scan 40 must be below that"), std::string::npos)
+      << r.output;
+  r = run("sweep " + capture + " --out " + dir.file("w2") + " --scan 0");
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("was skipped"), std::string::npos) << r.output;
+  r = run("sweep " + capture + " --out " + dir.file("w2") + " --scan 1");
+  EXPECT_EQ(r.code, 65) << r.output;
+  EXPECT_NE(r.output.find("no reference yet"), std::string::npos) << r.output;
+  EXPECT_EQ(error_lines(r.output), 1) << r.output;
+  r = run("sweep " + capture + " --out " + dir.file("w2") + " --axes x,twist");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("twist"), std::string::npos) << r.output;
+}
+
 // Every text a replay writes, lower-cased: a NaN or an infinity shows as "nan" or "inf".
 std::string replay_outputs(const std::string& dir) {
   std::string all;

@@ -1,6 +1,7 @@
-// Runs a capture file through the driver: the common front half of info, decode and replay.
+// Runs a capture file through the driver: the common front half of info, decode, replay and sweep.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,5 +43,20 @@ using ScanVisitor = void (*)(const core::Scan& scan, void* context);
 /// packets and a cut-short end are reported in the CaptureReport.
 core::Result<CaptureReport> read_capture(const std::string& path, const CaptureOptions& options,
                                          ScanVisitor visit = nullptr, void* context = nullptr);
+
+/// A usage error naming the folder to pass when `path` is one cloud file (.bin, .pcd, .ply)
+/// where a capture or a folder of clouds belongs; nothing otherwise.
+std::optional<core::Error> check_not_one_cloud(const std::string& path);
+
+/// What odometry programs read: a capture file (as read_capture) or a folder of clouds (KITTI
+/// .bin or PCD, one scan per file in name order, stamped from the folder's times.txt or
+/// `cloud_period_s` apart; no firing times, so no deskew). Scans hold at most `max_points`
+/// points (a cloud's extra points are dropped, flagged and logged). `max_scans` > 0: only the
+/// first max_scans scans are visited (a folder's later files are not read). Fails when the
+/// input cannot be opened or a cloud cannot be read (the error names the file); the scans before
+/// it have been visited. A folder's report holds its scans only.
+core::Result<CaptureReport> read_scans(const std::string& path, const CaptureOptions& options,
+                                       std::size_t max_points, double cloud_period_s,
+                                       std::size_t max_scans, ScanVisitor visit, void* context);
 
 }  // namespace cndt::cli

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cndt/cli/capture.hpp"
+#include "cndt/config/config.hpp"
 
 namespace cndt::cli {
 
@@ -35,6 +36,24 @@ struct CaptureArgs {
 void add_capture_options(CLI::App& cmd, CaptureArgs& args);
 /// Validates the arguments and turns them into options; errors are usage errors (exit 2).
 core::Result<CaptureOptions> to_capture_options(const CaptureArgs& args);
+
+/// What the odometry programs (replay, sweep) read and how the odometry runs over it: the same
+/// options mean the same to each.
+struct OdometryInputArgs {
+  std::string capture;  ///< a capture file or a folder of clouds (read_scans)
+  double scan_period_s = 0.1;
+  std::string mode = "consensus";
+  std::string reference = "local-map";
+  std::string config;  ///< cndtd configuration file (options given override it)
+  CaptureArgs capture_args;
+};
+/// The input (positional), --scan-period, --mode, --reference, --config and the capture options.
+void add_odometry_input_options(CLI::App& cmd, OdometryInputArgs& args);
+/// The configuration such a program runs with: the file's (none: the defaults), with the
+/// options typed on `command` on top (all of them when it is null), checked as the command
+/// line's are.
+core::Result<config::Config> odometry_config(const OdometryInputArgs& args,
+                                             const CLI::App* command);
 
 struct InfoArgs {
   std::string capture;
@@ -81,13 +100,10 @@ void register_sim(CLI::App& app, SimArgs& args);
 int run_sim(const SimArgs& args);
 
 struct ReplayArgs {
-  std::string capture;
+  OdometryInputArgs input;
   std::string out_dir;
-  std::string mode = "consensus";
-  std::string reference = "local-map";
   std::int64_t jitter_seed = 0;  ///< odometry.guess_jitter_seed
   std::size_t max_scans = 0;
-  double scan_period_s = 0.1;
   bool mapper = false;
   std::string map;  ///< prior map to localize in
   std::string map_mode = "frozen";
@@ -95,10 +111,8 @@ struct ReplayArgs {
   std::string save_map;
   double map_window_m = 0.0;  ///< evict map voxels farther than this from the vehicle; 0 keeps all
   std::string udp_out;        ///< also send every pose as a UDP datagram to ADDRESS:PORT
-  std::string config;         ///< cndtd configuration file (options given override it)
   bool realtime = false;      ///< pace the capture at its recorded rate
   CLI::App* command = nullptr;  ///< the parsed subcommand: which options were given
-  CaptureArgs capture_args;
 };
 void register_replay(CLI::App& app, ReplayArgs& args);
 int run_replay(const ReplayArgs& args);
@@ -109,6 +123,19 @@ struct EvalArgs {
 };
 void register_eval(CLI::App& app, EvalArgs& args);
 int run_eval(const EvalArgs& args);
+
+struct SweepArgs {
+  OdometryInputArgs input;
+  std::string out_dir;
+  std::size_t scan = 10;
+  std::vector<std::string> axes{"x", "roll"};
+  double max_translation_m = 2.0;
+  double max_rotation_deg = 5.0;
+  int steps = 20;
+  CLI::App* command = nullptr;  ///< the parsed subcommand: which options were given
+};
+void register_sweep(CLI::App& app, SweepArgs& args);
+int run_sweep(const SweepArgs& args);
 
 struct MapArgs {
   enum class Action { kInfo, kExport } action = Action::kInfo;

@@ -8,6 +8,7 @@
 
 #include "cndt/ndt/consensus.hpp"
 #include "cndt/ndt/voxel_grid.hpp"
+#include "cndt/slam/odometry.hpp"
 
 namespace cndt::slam {
 
@@ -24,6 +25,14 @@ std::vector<SweepSample> sweep_cm(const ndt::VoxelGrid& reference,
                                   std::span<const Eigen::Vector3d> test,
                                   const Eigen::Isometry3d& T_ref_test, int axis,
                                   std::span<const double> values, const ndt::ChiSquareTable& chi2);
+
+/// The same for the scan the odometry has just estimated (`result`, from estimate() without
+/// commit()): against the reference it was matched with, its points as the odometry left them
+/// (scan_points(): the 0.1 m cells Cv and Cm read, deskewed with the final motion), moved from
+/// its estimated pose. At 0 this is the scan's own Cm (eqs 10-13; the odometry reports 0 instead
+/// where it flags the pose degenerate).
+std::vector<SweepSample> sweep_cm(const ConsensusOdometry& odometry, const OdometryResult& result,
+                                  int axis, std::span<const double> values);
 
 /// Spearman rank correlation of two equally long series (ties get their mean rank).
 double spearman(std::span<const double> a, std::span<const double> b);
