@@ -175,6 +175,10 @@ const std::vector<Field>& fields() {
        "Points farther than this are not matched.", "m", 0.1, 1000},
       {"odometry", "deskew", CNDT_REF(odometry.deskew),
        "Undistort each scan with the estimated motion (every point has its firing time)."},
+      {"odometry", "level_frame", CNDT_REF(odometry.level_frame),
+       "A sensor mounted more than 5 deg off level (pitched down to see the ground, say) is "
+       "matched turned level: the first scan's ground gives the up direction. Poses are still "
+       "the sensor's, in its first scan's frame (docs/odometry.md)."},
       {"odometry", "deskew_refinements", CNDT_REF(odometry.deskew_refinements),
        "The matches solve for the scan's motion with its pose; when a match ends more than "
        "0.1 m or 0.01 rad from the pose the scan was deskewed for, it is deskewed again and "

@@ -89,6 +89,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.min_range = od.min_range_m;
   o.max_range = od.max_range_m;
   o.deskew = od.deskew;
+  o.level_frame = od.level_frame;
   o.deskew_refinements = static_cast<int>(od.deskew_refinements);
   o.local_map_scans = static_cast<std::size_t>(od.local_map_scans);
   o.local_map_points = static_cast<std::size_t>(od.local_map_points);

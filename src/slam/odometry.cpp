@@ -87,6 +87,7 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   }
   core::reserve_resident(lever_, o.max_scan_points, 0.0);
   if (o.deskew_to_mid_scan) core::reserve_resident(stamp_points_, o.max_scan_points, zero);
+  if (o.level_frame) core::reserve_resident(sensor_points_, o.max_scan_points, zero);
   const std::size_t slots =
       o.reference == Reference::kPreviousScan ? 1 : std::max<std::size_t>(1, o.local_map_scans);
   history_.resize(slots);
@@ -510,6 +511,38 @@ void ConsensusOdometry::commit() {
 }
 
 OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
+  OdometryResult res = estimate_levelled(scan);
+  if (tilted_) {
+    // Odometry frame O' = R O for the rotation R into the level frame: T_O = R^T T_O' R.
+    const Eigen::Matrix3d& r = level_rotation_;
+    res.pose.linear() = r.transpose() * res.pose.linear() * r;
+    res.pose.translation() = r.transpose() * res.pose.translation();
+    sensor_points_.clear();
+    for (const Eigen::Vector3d& p : options_.deskew_to_mid_scan ? stamp_points_ : cv_points_) {
+      sensor_points_.push_back(r.transpose() * p);
+    }
+  }
+  return res;
+}
+
+void ConsensusOdometry::decide_level() {
+  level_decided_ = true;
+  if (!options_.level_frame) return;
+  // The first scan's 0.1 m points in the coarsest grid, empty before the first reference.
+  ndt::VoxelGrid& g = pyramid_.empty() ? grid_ : pyramid_.front();
+  for (const TimedPoint& p : map_src_) g.add(p.p);
+  const Eigen::Vector3d up = level_normal(g);
+  g.clear();
+  if (up.z() > std::cos(5.0 * std::numbers::pi / 180.0)) return;
+  tilted_ = true;
+  level_rotation_ =
+      Eigen::Quaterniond::FromTwoVectors(up, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  for (TimedPoint& p : raw_) p.p = level_rotation_ * p.p;
+  map_sampler_.run(raw_, map_src_);
+  scan_sampler_.run(map_src_, scan_src_);
+}
+
+OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   commit();  // the previous scan's, when the caller has not
   OdometryResult res;
   // The match is degenerate (as kOdomDegenerate without the hysteresis of its report).
@@ -564,11 +597,13 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     const Eigen::Vector3d v(p.x, p.y, p.z);
     const double r2 = v.squaredNorm();
     if (r2 < min2 || r2 > max2 || !v.allFinite()) continue;
-    raw_.push_back({v, static_cast<double>(p.time_ns) * 1e-9});
+    raw_.push_back({tilted_ ? Eigen::Vector3d(level_rotation_ * v) : v,
+                    static_cast<double>(p.time_ns) * 1e-9});
   }
   res.raw_points = raw_.size();
   map_sampler_.run(raw_, map_src_);
   scan_sampler_.run(map_src_, scan_src_);
+  if (!level_decided_) decide_level();
   // The deskew motion spans one scan period; `motion` spans dt.
   to_period_ = period_s_ / std::max(dt, 1e-3);
   // The velocity at the stamp (deskew_acceleration). The motion from prev_pose_ is the mean

@@ -39,8 +39,9 @@ std::vector<SweepSample> sweep_cm(const ConsensusOdometry& odometry, const Odome
   // Every count of test points a voxel can hold, as the odometry's own table.
   const ndt::ChiSquareTable chi2(
       max_centroids_per_voxel(o.voxel_size, o.map_cell, o.max_scan_points));
-  return sweep_cm(odometry.reference_grid(), odometry.scan_points(), result.pose, axis, values,
-                  chi2);
+  // The reference lies in the odometry's own (levelled) frame.
+  const Eigen::Isometry3d T = Eigen::Isometry3d(odometry.level_rotation()) * result.pose;
+  return sweep_cm(odometry.reference_grid(), odometry.scan_points(), T, axis, values, chi2);
 }
 
 namespace {

@@ -58,8 +58,8 @@ TEST(ScoreThreads, EveryTaskRunsOnceAndIsDoneWhenRunReturns) {
   }
 }
 
-// The configuration's local-map keys reach the odometry, and left out they are the odometry's
-// own defaults.
+// The configuration's local-map keys and level_frame reach the odometry, and left out they are
+// the odometry's own defaults.
 TEST(Setup, LocalMapKeysReachTheOdometry) {
   auto defaults = make_setup(config::Config{});
   ASSERT_TRUE(defaults) << defaults.error().message;
@@ -69,8 +69,10 @@ TEST(Setup, LocalMapKeysReachTheOdometry) {
   EXPECT_EQ(d.local_map_points, library.local_map_points);
   EXPECT_EQ(d.map_min_translation, library.map_min_translation);
   EXPECT_EQ(d.map_admit_distance, library.map_admit_distance);
+  EXPECT_EQ(d.level_frame, library.level_frame);
   auto c = config::parse_config(R"(
 [odometry]
+level_frame = false
 local_map_scans = 30
 local_map_points = 900000
 map_min_translation_m = 2.0
@@ -85,6 +87,7 @@ map_admit_distance_m = 0.7
   EXPECT_EQ(o.local_map_points, 900'000u);
   EXPECT_EQ(o.map_min_translation, 2.0);
   EXPECT_EQ(o.map_admit_distance, 0.7);
+  EXPECT_FALSE(o.level_frame);
 }
 
 // The scans of a simulated drive, as the driver assembles them.

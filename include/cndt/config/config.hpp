@@ -45,6 +45,7 @@ struct Config {
     double min_range_m = 1.0;
     double max_range_m = 100.0;
     bool deskew = true;
+    bool level_frame = true;
     std::int64_t deskew_refinements = 2;
     std::int64_t local_map_scans = 60;
     std::int64_t local_map_points = 1'500'000;

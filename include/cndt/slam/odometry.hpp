@@ -74,6 +74,13 @@ struct OdometryOptions {
   /// street drive drifts to an ATE of 0.71 m (0.19 m without), which the mapper then does not
   /// correct (docs/odometry.md).
   bool deskew_to_mid_scan = false;
+  /// A sensor mounted more than 5 deg off level (pitched down to see the ground, say): the
+  /// level surfaces (ground, floor) of the first scan used give the up direction, and every scan is
+  /// turned by the rotation that brings it to z before anything else, so that the matches, the
+  /// start search and the level patches see a level sensor. The poses and points reported are
+  /// turned back: sensor poses in the first scan's sensor frame, as for a level sensor. Within
+  /// 5 deg of level nothing is turned.
+  bool level_frame = true;
   /// Deskew with the velocity at the stamp, from the last three poses (the second-order
   /// backward difference; for equal steps 1.5 x the motion from the last pose - 0.5 x the
   /// motion before it), instead of the mean velocity over the last period, which lags half a
@@ -281,8 +288,14 @@ class ConsensusOdometry {
   /// estimate), in the sensor frame at its stamp: what the mapper takes. Stale after a skipped
   /// scan.
   [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const {
+    if (tilted_) return sensor_points_;
     return options_.deskew_to_mid_scan ? stamp_points_ : cv_points_;
   }
+  /// The rotation from the sensor's frame into the odometry's own (level_frame; the identity
+  /// for a sensor within 5 deg of level): reference_grid() and reference_points() lie in the
+  /// odometry frame turned by it, so scan_points() go there by
+  /// level_rotation() * pose * p for a reported pose.
+  [[nodiscard]] const Eigen::Matrix3d& level_rotation() const { return level_rotation_; }
   /// Scans the reference holds now (local map: at most local_map_scans, and fewer when their
   /// points fill local_map_points), not counting those waiting for map_admit_distance.
   [[nodiscard]] std::size_t reference_scans() const { return in_grids_; }
@@ -368,6 +381,14 @@ class ConsensusOdometry {
   double period_s_ = 0.1, to_period_ = 1.0;    // this scan's period; period over time step
   std::vector<Eigen::Vector3d> cv_points_;     // map_src_ deskewed: Cv, and added to the reference
   std::vector<Eigen::Vector3d> stamp_points_;  // deskew_to_mid_scan: cv_points_ at the stamp
+  // level_frame: decided at the first scan used; the rotation into the level frame, and the
+  // scan's points turned back into the sensor's frame for scan_points().
+  bool level_decided_ = false;
+  bool tilted_ = false;
+  Eigen::Matrix3d level_rotation_ = Eigen::Matrix3d::Identity();
+  std::vector<Eigen::Vector3d> sensor_points_;
+  OdometryResult estimate_levelled(const core::Scan& scan);
+  void decide_level();
   Eigen::Isometry3d test_motion_ = Eigen::Isometry3d::Identity();    // last deskew_for motion
   Eigen::Isometry3d deskewed_with_ = Eigen::Isometry3d::Identity();  // last deskew_scan motion
   // The local map's scans in the odometry frame: a ring of up to local_map_scans entries, oldest
