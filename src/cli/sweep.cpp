@@ -184,9 +184,13 @@ int run_sweep(const SweepArgs& a) {
   if (!report) return fail(report.error());
   warn_if_cut_short(report.value());
   if (run.seen == 0) {
-    return fail({core::kExitDataError, fmt::format("no scan in '{}' (`cndt info` shows the "
-                                                   "capture in detail)",
-                                                   a.input.capture)});
+    // Why the packets were refused, by reason (an unsupported model, say), as replay says it.
+    const vlp16::DriverStats& d = report.value().driver;
+    const std::string why = d.rejected_total() > 0 ? ": " + d.rejects_text() : "";
+    return fail({core::kExitDataError,
+                 fmt::format("no scan in '{}' ({} data packets, {} rejected{}; `cndt info` "
+                             "shows the capture in detail)",
+                             a.input.capture, d.data_packets, d.rejected_total(), why)});
   }
   if (run.seen <= a.scan) {
     return fail(

@@ -70,10 +70,12 @@ TEST(CliBadInput, CaptureWithoutSensorDataIsNotASilentSuccess) {
 TEST(CliBadInput, ReplayOfAnUnsupportedSensorSaysWhyThereIsNoScan) {
   CNDT_REQUIRE_SHARED(path, "opendavinci-hdl64-wall/atwallshort.pcap");
   cndt::test::TempDir dir;
-  const CliRun r = run("replay " + path + " --out " + dir.file("r"));
-  EXPECT_EQ(r.code, 65) << r.output;
-  EXPECT_EQ(error_lines(r.output), 1) << r.output;
-  EXPECT_NE(r.output.find("306 rejected: 306 unsupported_model"), std::string::npos) << r.output;
+  for (const char* command : {"replay", "sweep"}) {
+    const CliRun r = run(std::string(command) + " " + path + " --out " + dir.file(command));
+    EXPECT_EQ(r.code, 65) << r.output;
+    EXPECT_EQ(error_lines(r.output), 1) << r.output;
+    EXPECT_NE(r.output.find("306 rejected: 306 unsupported_model"), std::string::npos) << r.output;
+  }
 }
 
 TEST(CliUsage, BadOptionsAreUsageErrors) {
