@@ -46,6 +46,14 @@ core::Result<CaptureReport> read_capture(const std::string& path, const CaptureO
   return report;
 }
 
+core::Error no_scan_error(const std::string& path, const vlp16::DriverStats& d) {
+  const std::string why = d.rejected_total() > 0 ? ": " + d.rejects_text() : "";
+  return {core::kExitDataError,
+          fmt::format("no scan in '{}' ({} data packets, {} rejected{}; `cndt info` shows the "
+                      "capture in detail)",
+                      path, d.data_packets, d.rejected_total(), why)};
+}
+
 std::optional<core::Error> check_not_one_cloud(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) return std::nullopt;

@@ -328,15 +328,7 @@ int run_replay(const ReplayArgs& a) {
       core::percentile(mo.mapper_ms, 0.5), core::percentile(mo.mapper_ms, 0.99),
       mapper ? mapper->map().size() : 0, core::percentile(mo.map_cm, 0.5));
   summary.close();
-  if (scans == 0) {
-    // Why the packets were refused, by reason (an unsupported model, say), and where to look.
-    const vlp16::DriverStats& d = report.driver;
-    const std::string why = d.rejected_total() > 0 ? ": " + d.rejects_text() : "";
-    return fail({core::kExitDataError,
-                 fmt::format("no scan in '{}' ({} data packets, {} rejected{}; `cndt info` "
-                             "shows the capture in detail)",
-                             a.input.capture, d.data_packets, d.rejected_total(), why)});
-  }
+  if (scans == 0) return fail(no_scan_error(a.input.capture, report.driver));
   spdlog::info("{} scans in {:.1f} s; odometry {:.1f} ms median, {:.1f} ms p99; results in '{}'",
                scans, wall, core::percentile(ms, 0.5), core::percentile(ms, 0.99), a.out_dir);
   return core::kExitOk;

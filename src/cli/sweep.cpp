@@ -101,7 +101,6 @@ struct Run {
   slam::ConsensusOdometry* odometry;
   std::size_t target, seen = 0;
   slam::OdometryResult result;
-  bool matched_against_reference = false;
 };
 
 }  // namespace
@@ -122,13 +121,15 @@ void register_sweep(CLI::App& app, SweepArgs& a) {
                   "Which scan: its 0-based row in replay's scans.csv (the first revolution, "
                   "often partial, is row 0). It must have been matched against a reference")
       ->capture_default_str();
+  std::vector<std::string> axis_names;
+  for (const AxisName& n : kAxes) axis_names.emplace_back(n.name);
   cmd->add_option("--axes", a.axes,
                   "Axes to move the scan along, comma-separated: x y z (metres, along the "
                   "odometry frame's axes) roll pitch yaw (degrees, added to the pose's angles "
                   "of R = Rx(roll) Ry(pitch) Rz(yaw))")
       ->delimiter(',')
       ->capture_default_str()
-      ->check(CLI::IsMember({"x", "y", "z", "roll", "pitch", "yaw"}));
+      ->check(CLI::IsMember(axis_names));
   cmd->add_option("--max-translation", a.max_translation_m,
                   "Largest move along x, y and z, metres (paper: 2)")
       ->capture_default_str()
@@ -166,14 +167,13 @@ int run_sweep(const SweepArgs& a) {
   if (auto err = create_output_dir(a.out_dir)) return fail(*err);
 
   auto odometry = std::make_unique<slam::ConsensusOdometry>(setup.value().pipeline.odometry);
-  Run run{odometry.get(), a.scan, 0, {}, false};
+  Run run{odometry.get(), a.scan, 0, {}};
   const auto visit = [](const core::Scan& scan, void* ctx) {
     auto& r = *static_cast<Run*>(ctx);
     if (r.seen++ < r.target) {
       r.odometry->process(scan);
       return;
     }
-    r.matched_against_reference = r.odometry->reference_grid().size() > 0;
     r.result = r.odometry->estimate(scan);
   };
   CaptureOptions co;
@@ -183,15 +183,7 @@ int run_sweep(const SweepArgs& a) {
                            a.scan + 1, visit, &run);
   if (!report) return fail(report.error());
   warn_if_cut_short(report.value());
-  if (run.seen == 0) {
-    // Why the packets were refused, by reason (an unsupported model, say), as replay says it.
-    const vlp16::DriverStats& d = report.value().driver;
-    const std::string why = d.rejected_total() > 0 ? ": " + d.rejects_text() : "";
-    return fail({core::kExitDataError,
-                 fmt::format("no scan in '{}' ({} data packets, {} rejected{}; `cndt info` "
-                             "shows the capture in detail)",
-                             a.input.capture, d.data_packets, d.rejected_total(), why)});
-  }
+  if (run.seen == 0) return fail(no_scan_error(a.input.capture, report.value().driver));
   if (run.seen <= a.scan) {
     return fail(
         {core::kExitDataError, fmt::format("'{}' has {} scans: --scan {} must be below that",
@@ -204,12 +196,12 @@ int run_sweep(const SweepArgs& a) {
                              "has no pose to move; choose a later one",
                              a.scan, a.input.capture, r.flags)});
   }
-  if (!run.matched_against_reference || (r.flags & slam::kOdomTooFewPoints) != 0) {
+  const bool first = (r.flags & slam::kOdomFirstScan) != 0;
+  if (first || (r.flags & slam::kOdomTooFewPoints) != 0) {
     return fail({core::kExitDataError,
                  fmt::format("scan {} of '{}' was not matched (flags {}: {}); choose a later one",
                              a.scan, a.input.capture, r.flags,
-                             run.matched_against_reference ? "too few points"
-                                                           : "the first, with no reference yet")});
+                             first ? "the first, with no reference yet" : "too few points")});
   }
 
   for (AxisSweep& s : sweeps) {

@@ -44,6 +44,10 @@ using ScanVisitor = void (*)(const core::Scan& scan, void* context);
 core::Result<CaptureReport> read_capture(const std::string& path, const CaptureOptions& options,
                                          ScanVisitor visit = nullptr, void* context = nullptr);
 
+/// The error for input that gave no scan at all: how many data packets it held and why they
+/// were refused, by reason (an unsupported model, say), and where to look further.
+core::Error no_scan_error(const std::string& path, const vlp16::DriverStats& driver);
+
 /// A usage error naming the folder to pass when `path` is one cloud file (.bin, .pcd, .ply)
 /// where a capture or a folder of clouds belongs; nothing otherwise.
 std::optional<core::Error> check_not_one_cloud(const std::string& path);
