@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cndt/cli/cloud_io.hpp"
+#include "cndt/output/pose_message.hpp"
 #include "cndt/sim/lidar_sim.hpp"
 #include "cndt/slam/sweep.hpp"
 #include "cndt/slam/trajectory_eval.hpp"
@@ -604,13 +605,10 @@ double degrees_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 // the first matches tilted the estimate by 1.8 deg, which it kept (its height 4.8 m off after
 // 20 s). The normal is now taken again from the planes near the first estimate.
 TEST(Odometry, TheLevelFrameComesFromTheLevelPlanesAlone) {
-  const sim::Scene flat = sim::build_scene(sim::SceneKind::kStreet, 20.0, 0, 41003);
-  sim::Scene scene = flat;
+  sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 20.0, 0, 41003);
   constexpr double kDeg = std::numbers::pi / 180.0;
-  scene.mount = (Eigen::AngleAxisd(-116.5 * kDeg, Eigen::Vector3d::UnitZ()) *
-                 Eigen::AngleAxisd(-0.4 * kDeg, Eigen::Vector3d::UnitY()) *
-                 Eigen::AngleAxisd(-4.9 * kDeg, Eigen::Vector3d::UnitX()))
-                    .toRotationMatrix();
+  // As `cndt sim --mount -4.9 -0.4 -116.5`.
+  scene.mount = output::from_roll_pitch_yaw(-4.9 * kDeg, -0.4 * kDeg, -116.5 * kDeg);
   ConsensusOdometry odometry{OdometryOptions{}};
   SceneRun run;
   run.starts = test::simulate_scene(scene, sensor_at(720, 1.5, 41003), [&](core::Scan& scan) {
