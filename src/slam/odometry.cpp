@@ -1,7 +1,9 @@
 #include "cndt/slam/odometry.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 
@@ -148,40 +150,79 @@ core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::
   if (along.norm() <= 1e-9) along = Eigen::Vector3d::UnitX() - level_.x() * level_;
   along.normalize();
   const Eigen::Vector3d across = level_.cross(along);
-  core::Pose6 best = x0;
-  int best_i = 0, best_j = 0;
-  double best_score =
-      ndt::ndt_score(g, test_, x0, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
-          .score;
+  auto offset = [&](int i, int j) {
+    core::Pose6 x = x0;
+    x.head<3>() += step * (i * along + j * across);
+    return x;
+  };
+  // The best offsets scored, best first (x0 itself is offset (0, 0)).
+  struct Offset {
+    double score;
+    int i, j;
+  };
+  std::array<Offset, kSearchKept> kept;
+  std::size_t n_kept = 0;
+  auto keep = [&](double s, int i, int j) {
+    std::size_t k = std::min(n_kept, kept.size() - 1);
+    if (n_kept == kept.size() && !(s < kept[k].score)) return;
+    for (; k > 0 && s < kept[k - 1].score; --k) kept[k] = kept[k - 1];
+    kept[k] = {s, i, j};
+    n_kept = std::min(n_kept + 1, kept.size());
+  };
+  keep(ndt::ndt_score(g, test_, x0, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
+           .score,
+       0, 0);
   // Offsets (i, j) within m along and n across, skipping those within (m_in, n_in).
   auto scan_ring = [&](int m_in, int n_in) {
     for (int i = -m; i <= m; ++i) {
       for (int j = -n; j <= n; ++j) {
         if (std::abs(i) <= m_in && std::abs(j) <= n_in) continue;
-        core::Pose6 x = x0;
-        x.head<3>() += step * (i * along + j * across);
-        const double s =
-            ndt::ndt_score(g, test_, x, false, nullptr, options_.pyramid.neighbours, &lookup_cache_)
-                .score;
-        if (s < best_score) {
-          best_score = s;
-          best = x;
-          best_i = i;
-          best_j = j;
-        }
+        keep(ndt::ndt_score(g, test_, offset(i, j), false, nullptr, options_.pyramid.neighbours,
+                            &lookup_cache_)
+                 .score,
+             i, j);
       }
     }
   };
   scan_ring(0, 0);
   auto on_edge = [&] {
-    return (m > 0 && std::abs(best_i) == m) || (n > 0 && std::abs(best_j) == n);
+    return (m > 0 && std::abs(kept[0].i) == m) || (n > 0 && std::abs(kept[0].j) == n);
   };
   while (on_edge() && std::max(m, n) < limit) {
     ++m;
     ++n;
     scan_ring(m - 1, n - 1);
   }
-  return best;
+  // A street's or corridor's valley in the score runs along it, narrower across than the
+  // offsets' spacing: with the vehicle's heading off the grid's axes (a sensor turned on its
+  // mount) an offset beside the valley's floor can score worse than zero motion, where the
+  // rings of the first scan line up. So the best offsets in separate places (not next to a
+  // better one) are each solved on the coarsest grid, and the offset whose solve ends lowest is
+  // the start (the pyramid's first solve then repeats that descent); a solve that ends within
+  // half a step of the chosen one's end (the same minimum) does not displace it, so a search
+  // whose best-scored offset led to the right place is unchanged.
+  std::size_t best = 0;
+  double best_solved = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d best_end = Eigen::Vector3d::Zero();
+  std::size_t solved = 0;
+  for (std::size_t k = 0; k < n_kept && solved < kSearchSolved; ++k) {
+    bool beside_better = false;
+    for (std::size_t b = 0; b < k; ++b) {
+      beside_better |= std::abs(kept[b].i - kept[k].i) <= 1 && std::abs(kept[b].j - kept[k].j) <= 1;
+    }
+    if (beside_better) continue;
+    ++solved;
+    const ndt::NewtonResult r =
+        ndt::newton_solve(g, test_, offset(kept[k].i, kept[k].j), options_.pyramid, nullptr,
+                          &lookup_cache_, scan_motion());
+    const bool apart = solved == 1 || (r.pose.head<3>() - best_end).norm() > 0.5 * step;
+    if (r.score < best_solved && apart) {
+      best_solved = r.score;
+      best_end = r.pose.head<3>();
+      best = k;
+    }
+  }
+  return offset(kept[best].i, kept[best].j);
 }
 
 core::Pose6 ConsensusOdometry::coarse_to_fine(const core::Pose6& x0) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <span>
@@ -331,10 +332,13 @@ class ConsensusOdometry {
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
   void jitter(core::Pose6& x);  // guess_jitter_seed: moves x by at most 0.5e-9 per coordinate
+  // search_start: the best offsets kept, and how many of them (apart) are solved.
+  static constexpr std::size_t kSearchKept = 16, kSearchSolved = 4;
   // The best of a grid of offsets from x0 on the coarsest grid, in the plane of the level
   // surfaces (level_; the x-y plane for a level sensor): along `heading` up to
   // max(along_radius, start_search_radius), across it start_search_radius; grown one step
-  // outwards at a time while the best lies on its edge, up to grow_to (m) from x0.
+  // outwards at a time while the best lies on its edge, up to grow_to (m) from x0; of the best
+  // offsets in separate places, the one whose solve on the coarsest grid ends lowest.
   core::Pose6 search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
                            double along_radius, double grow_to = 0.0);
   void add_to_grids(std::span<const Eigen::Vector3d> points);
