@@ -102,9 +102,11 @@ for d in drives:
     j = json.load(open(f"{out}/{name}/replay/eval.json"))
     row = [j["ate_rmse_m"], j["rte_percent"], j["rre_deg_per_m"], j["rpe_translation_rmse_m"],
            j["start_aligned"]["height_error_end_m"]]
-    worst = [max(a, abs(b)) for a, b in zip(worst, row)]
+    # RTE and RRE are null on a path shorter than 20 m (no segment): shown as n/a.
+    worst = [w if b is None else max(w, abs(b)) for w, b in zip(worst, row)]
     ates.append(row[0])
-    print(f"| {name} | `{args}` | {row[0]:.4f} | {row[1]:.3f} | {row[2]:.4f} | {row[3]:.4f} | {row[4]:.2f} |")
+    cells = ["n/a" if v is None else f"{v:.{n}f}" for v, n in zip(row, (4, 3, 4, 4, 2))]
+    print(f"| {name} | `{args}` | " + " | ".join(cells) + " |")
 print()
 print("worst: ATE %.4f m, RTE %.3f %%, RRE %.4f deg/m, RPE %.4f m, |height at end| %.2f m" % tuple(worst),
       "over %d drives; ATE median %.4f m" % (len(drives), statistics.median(ates)))

@@ -1,6 +1,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -52,7 +53,8 @@ void register_eval(CLI::App& app, EvalArgs& a) {
       "eval",
       "Compare an estimated trajectory with ground truth (both TUM files) and print "
       "JSON: ATE RMSE after an SE(3) alignment, KITTI-style relative translational (%) "
-      "and rotational (deg/m) errors over path segments, per-frame RPE, and the errors of "
+      "and rotational (deg/m) errors over path segments of 10, 20, 40, ... m up to half the "
+      "path (null below 20 m), per-frame RPE, and the errors of "
       "dead reckoning from the first pose (start_aligned: position and height error at the "
       "end, largest height error, roll and pitch error at the end), which the ATE's fit hides");
   cmd->add_option("--gt", a.gt, "Ground-truth TUM file")->required();
@@ -77,16 +79,27 @@ int run_eval(const EvalArgs& a) {
     frames += fmt::format("{}[{:.6f}, {:.5f}, {:.5f}]", frames.empty() ? "" : ", ", f.t,
                           f.translation, f.rotation_deg);
   }
+  // No segment fits a path shorter than 20 m: the segment errors are not measured (null),
+  // rather than reported as zero.
+  auto number_or_null = [](double v, int digits) {
+    return std::isfinite(v) ? fmt::format("{:.{}f}", v, digits) : std::string("null");
+  };
+  if (r.segment_lengths.empty()) {
+    spdlog::warn(
+        "the ground truth's path is {:.1f} m, shorter than 20 m (twice the shortest segment): "
+        "rte_percent and rre_deg_per_m are null; the ATE and the per-frame errors are measured",
+        r.path_length);
+  }
   std::cout << fmt::format(
       "{{\n  \"matched\": {},\n  \"path_length_m\": {:.3f},\n  \"ate_rmse_m\": {:.4f},\n  "
-      "\"ate_max_m\": {:.4f},\n  \"rte_percent\": {:.4f},\n  \"rre_deg_per_m\": {:.5f},\n  "
+      "\"ate_max_m\": {:.4f},\n  \"rte_percent\": {},\n  \"rre_deg_per_m\": {},\n  "
       "\"rpe_translation_rmse_m\": {:.5f},\n  \"rpe_rotation_rmse_deg\": {:.5f},\n  "
       "\"start_aligned\": {{\"end_error_m\": {:.4f}, \"height_error_end_m\": {:.4f}, "
       "\"height_error_max_m\": {:.4f}, \"tilt_end_deg\": {:.4f}}},\n  "
       "\"segment_lengths_m\": [{}],\n  \"rpe_per_frame\": [{}]\n}}\n",
-      r.matched, r.path_length, r.ate_rmse, r.ate_max, r.rte_percent, r.rre_deg_per_m,
-      r.rpe_translation_rmse, r.rpe_rotation_rmse_deg, r.end_error, r.height_error_end,
-      r.height_error_max, r.tilt_end_deg, lengths, frames);
+      r.matched, r.path_length, r.ate_rmse, r.ate_max, number_or_null(r.rte_percent, 4),
+      number_or_null(r.rre_deg_per_m, 5), r.rpe_translation_rmse, r.rpe_rotation_rmse_deg,
+      r.end_error, r.height_error_end, r.height_error_max, r.tilt_end_deg, lengths, frames);
   return core::kExitOk;
 }
 

@@ -306,6 +306,26 @@ TEST(CliReplay, BadInputGivesAnErrorOrFlaggedPosesAndNeverNaN) {
   }
 }
 
+// A path shorter than 20 m holds no 10 m segment twice: the segment errors are null, not 0, and
+// a warning says why; the ATE is still measured.
+TEST(CliEval, AShortPathHasNullSegmentErrors) {
+  cndt::test::TempDir dir;
+  std::ofstream gt(dir.file("gt.tum"));
+  std::ofstream est(dir.file("est.tum"));
+  for (int i = 0; i < 30; ++i) {  // 14.5 m
+    gt << i * 0.1 << " " << i * 0.5 << " 0 0 0 0 0 1\n";
+    est << i * 0.1 << " " << i * 0.51 << " 0 0 0 0 0 1\n";
+  }
+  gt.close();
+  est.close();
+  const CliRun r = run("eval --gt " + dir.file("gt.tum") + " --est " + dir.file("est.tum"));
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"rte_percent\": null"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"rre_deg_per_m\": null"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("shorter than 20 m"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("\"ate_rmse_m\": 0.0000"), std::string::npos) << r.output;
+}
+
 TEST(CliEval, BadTrajectoryFilesNameFileAndLine) {
   cndt::test::TempDir dir;
   std::ofstream(dir.file("gt.tum")) << "# header\n1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n";

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <limits>
 #include <vector>
 
 namespace cndt::slam {
@@ -23,9 +24,12 @@ struct EvalResult {
   std::size_t matched = 0;   ///< estimated poses with a ground-truth pose at their time
   double path_length = 0.0;  ///< m, along the ground truth
   double ate_rmse = 0.0,
-         ate_max = 0.0;        ///< m, after aligning the estimate (rotation + translation)
-  double rte_percent = 0.0;    ///< mean translational error over segments, % of their length
-  double rre_deg_per_m = 0.0;  ///< mean rotational error over segments, deg per metre
+         ate_max = 0.0;  ///< m, after aligning the estimate (rotation + translation)
+  /// Mean translational error over segments, % of their length; NaN when the path is shorter
+  /// than two of the shortest segment (20 m) and so holds none.
+  double rte_percent = std::numeric_limits<double>::quiet_NaN();
+  /// Mean rotational error over segments, deg per metre; NaN likewise.
+  double rre_deg_per_m = std::numeric_limits<double>::quiet_NaN();
   double rpe_translation_rmse = 0.0, rpe_rotation_rmse_deg = 0.0;  ///< frame to frame
   /// Dead reckoning from a known start: the estimate placed on the ground truth by its first
   /// pose alone, as a vehicle sees it, without the hindsight fit of the ATE. A tilt picked up

@@ -231,6 +231,19 @@ TEST(TrajectoryEval, IdenticalAndRigidlyMovedEstimatesHaveNoError) {
   EXPECT_LT(r.tilt_end_deg, 1e-5);
 }
 
+TEST(TrajectoryEval, APathShorterThanTwoSegmentsHasNoSegmentErrors) {
+  const auto gt = line(30, 0.5);  // 14.5 m: a 10 m segment does not fit twice
+  const auto est = line(30, 0.505);
+  const EvalResult r = evaluate(gt, est);
+  EXPECT_TRUE(r.segment_lengths.empty());
+  EXPECT_TRUE(std::isnan(r.rte_percent));
+  EXPECT_TRUE(std::isnan(r.rre_deg_per_m));
+  EXPECT_GT(r.ate_rmse, 0.01);                                         // measured all the same
+  const EvalResult longer = evaluate(line(41, 0.5), line(41, 0.505));  // 20 m
+  ASSERT_EQ(longer.segment_lengths.size(), 1u);
+  EXPECT_NEAR(longer.rte_percent, 1.0, 1e-6);
+}
+
 TEST(TrajectoryEval, ScaleErrorShowsAsRelativeTranslationError) {
   const auto gt = line(300, 0.5);
   const auto est = line(300, 0.505);  // 1 % too long
