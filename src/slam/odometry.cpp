@@ -25,6 +25,9 @@ Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& m, double a) {
 
 bool finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
+// search_start: the best offsets kept, and how many of them (apart) are solved.
+constexpr std::size_t kSearchKept = 16, kSearchSolved = 4;
+
 // Smallest over largest eigenvalue of the translation block of an NDT Hessian: how evenly the
 // scene constrains the position. Below 0 when the match ended on a saddle; 0 for no Hessian.
 double translation_conditioning(const ndt::Matrix6d& hessian) {

@@ -5,7 +5,6 @@
 #pragma once
 
 #include <Eigen/Geometry>
-#include <array>
 #include <chrono>
 #include <cstdint>
 #include <span>
@@ -332,8 +331,6 @@ class ConsensusOdometry {
   void replace_newest(const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose);
   core::Pose6 coarse_to_fine(const core::Pose6& x0);  // through the pyramid
   void jitter(core::Pose6& x);  // guess_jitter_seed: moves x by at most 0.5e-9 per coordinate
-  // search_start: the best offsets kept, and how many of them (apart) are solved.
-  static constexpr std::size_t kSearchKept = 16, kSearchSolved = 4;
   // The best of a grid of offsets from x0 on the coarsest grid, in the plane of the level
   // surfaces (level_; the x-y plane for a level sensor): along `heading` up to
   // max(along_radius, start_search_radius), across it start_search_radius; grown one step
