@@ -17,8 +17,10 @@ row() {  # scene movers mode
   python3 - "$1" "$2" "$3" "$dir/$3/eval.json" "$dir/$3/summary.json" <<'PY'
 import json, sys
 e = json.load(open(sys.argv[4])); s = json.load(open(sys.argv[5]))
+def num(x, spec):  # segment errors are null on a path under 20 m
+    return "n/a" if x is None else format(x, spec)
 print(f"| {sys.argv[1]} | {sys.argv[2]} | {sys.argv[3]} | {e['path_length_m']:.0f} | {e['ate_rmse_m']:.3f} | "
-      f"{e['rte_percent']:.2f} | {e['rre_deg_per_m']:.4f} | {e['rpe_translation_rmse_m']:.4f} | "
+      f"{num(e['rte_percent'], '.2f')} | {num(e['rre_deg_per_m'], '.4f')} | {e['rpe_translation_rmse_m']:.4f} | "
       f"{e['start_aligned']['height_error_end_m']:.2f} | {e['start_aligned']['tilt_end_deg']:.2f} | "
       f"{s['iterations_mean']:.1f} | {s['odometry_ms_p50']:.0f} |")
 PY

@@ -43,10 +43,11 @@ for drive, jitter in jobs:
     rows.append((f"{drive}-j{jitter}", e["ate_rmse_m"], e["rte_percent"],
                  e["rpe_translation_rmse_m"]))
 def line(name, sel):
-    a, t, p = ([r[k] for r in sel] for k in (1, 2, 3))
+    a, p = ([r[k] for r in sel] for k in (1, 3))
+    t = [r[2] for r in sel if r[2] is not None]  # RTE is null on a path under 20 m
+    rte = f"{statistics.mean(t):.3f} / {statistics.median(t):.3f}" if t else "n/a"
     return (f"| {name} | {len(sel)} | {statistics.mean(a):.4f} / {statistics.median(a):.4f} / "
-            f"{max(a):.3f} | {sum(x > 0.1 for x in a)} | {statistics.mean(t):.3f} / "
-            f"{statistics.median(t):.3f} | {statistics.mean(p):.4f} |")
+            f"{max(a):.3f} | {sum(x > 0.1 for x in a)} | {rte} | {statistics.mean(p):.4f} |")
 print("| draws | n | ATE m mean / median / worst | ATE > 0.1 m | RTE % mean / median | RPE m mean |")
 print("|---|---|---|---|---|---|")
 print(line("all", rows))

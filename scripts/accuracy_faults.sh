@@ -28,14 +28,17 @@ for seed in 11 12 13 14 15 16 17 18 19 20; do
     row=$("$cndt" eval --gt "$dir/groundtruth.tum" --est "$dir/replay/trajectory.tum" |
       python3 -c 'import json, sys
 j = json.load(sys.stdin)
-print("%.4f %.3f %.4f" % (j["ate_rmse_m"], j["rte_percent"], j["rpe_translation_rmse_m"]))')
+rte = "n/a" if j["rte_percent"] is None else "%.3f" % j["rte_percent"]  # null under 20 m
+print("%.4f %s %.4f" % (j["ate_rmse_m"], rte, j["rpe_translation_rmse_m"]))')
     read -r ate rte rpe <<<"$row"
     rows+=("$row")
     echo "| $scene-$seed | ${setting[*]} | $ate | $rte | $rpe |"
   done
 done
 printf '%s\n' "${rows[@]}" | python3 -c 'import sys
-r = [list(map(float, l.split())) for l in sys.stdin if l.strip()]
+r = [l.split() for l in sys.stdin if l.strip()]
+rte = [float(x[1]) for x in r if x[1] != "n/a"]
 print()
-print("worst: ATE %.4f m, RTE %.3f %%, RPE %.4f m over %d drives" %
-      (max(x[0] for x in r), max(x[1] for x in r), max(x[2] for x in r), len(r)))'
+print("worst: ATE %.4f m, RTE %s %%, RPE %.4f m over %d drives" %
+      (max(float(x[0]) for x in r), "%.3f" % max(rte) if rte else "n/a",
+       max(float(x[2]) for x in r), len(r)))'

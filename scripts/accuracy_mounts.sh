@@ -26,8 +26,9 @@ j = json.load(sys.stdin)
 rows = [r for r in csv.DictReader(open(sys.argv[3])) if int(r["flags"]) & 32 == 0]  # skipped: no pose
 flagged = sum(1 for r in rows if int(r["flags"]) & 8)
 s = j["start_aligned"]
-print("| %s | %s | %.4f | %.3f | %.4f | %.2f | %.2f | %d of %d |" % (sys.argv[1], sys.argv[2],
-      j["ate_rmse_m"], j["rte_percent"], j["rpe_translation_rmse_m"], s["height_error_end_m"],
+rte = "n/a" if j["rte_percent"] is None else "%.3f" % j["rte_percent"]  # null under 20 m
+print("| %s | %s | %.4f | %s | %.4f | %.2f | %.2f | %d of %d |" % (sys.argv[1], sys.argv[2],
+      j["ate_rmse_m"], rte, j["rpe_translation_rmse_m"], s["height_error_end_m"],
       s["tilt_end_deg"], flagged, len(rows)))' "$mount" "$scene" "$dir/replay/scans.csv"
   done
 done

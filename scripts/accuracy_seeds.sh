@@ -34,8 +34,10 @@ ev = {d: {m: json.load(open(f"{out}/{d}/{m}/eval.json")) for m in ("consensus", 
       for d in drives}
 print("| drive | " + " | ".join(f"{l} consensus / naive" for _, l in keys) + " |")
 print("|---|" + "---|" * len(keys))
+def num(x):  # segment errors are null on a path under 20 m
+    return "n/a" if x is None else f"{x:.4f}"
 for d in drives:
-    print(f"| {d} | " + " | ".join(f"{ev[d]['consensus'][k]:.4f} / {ev[d]['naive'][k]:.4f}"
+    print(f"| {d} | " + " | ".join(f"{num(ev[d]['consensus'][k])} / {num(ev[d]['naive'][k])}"
                                    for k, _ in keys) + " |")
 print()
 print("| drives | n | " + " | ".join(f"{l} consensus / naive: mean, median (consensus better in)"
@@ -48,8 +50,12 @@ for name, pick in groups:
     sel = [d for d in drives if pick(d)]
     cells = []
     for k, _ in keys:
-        c = [ev[d]["consensus"][k] for d in sel]
-        n = [ev[d]["naive"][k] for d in sel]
+        both = [d for d in sel if None not in (ev[d]["consensus"][k], ev[d]["naive"][k])]
+        if not both:
+            cells.append("n/a")
+            continue
+        c = [ev[d]["consensus"][k] for d in both]
+        n = [ev[d]["naive"][k] for d in both]
         wins = sum(a < b for a, b in zip(c, n))
         cells.append(f"{statistics.mean(c):.4f} / {statistics.mean(n):.4f}, "
                      f"{statistics.median(c):.4f} / {statistics.median(n):.4f} ({wins})")
