@@ -27,6 +27,8 @@ bool finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
 // search_start: the best offsets kept, and how many of them (apart) are solved.
 constexpr std::size_t kSearchKept = 16, kSearchSolved = 4;
+// search_gap_start: two solves ending closer in heading than this found the same minimum.
+constexpr double kSameHeadingRad = std::numbers::pi / 180.0;
 
 // Smallest over largest eigenvalue of the translation block of an NDT Hessian: how evenly the
 // scene constrains the position. Below 0 when the match ended on a saddle; 0 for no Hessian.
@@ -129,14 +131,16 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
   }
 }
 
-core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
-                                            double along_radius, double grow_to) {
+ConsensusOdometry::StartSearch ConsensusOdometry::search_start(const core::Pose6& x0,
+                                                               const Eigen::Vector3d& heading,
+                                                               double along_radius,
+                                                               double grow_to) {
   // Without a velocity the coarse objective can be too flat near x0 for Newton to leave it (a
   // vehicle already moving when the first scans arrive); after a gap in the data the velocity
   // is old and the prediction off along the way. Score a horizontal grid of offsets on the
   // coarsest grid and start from the best. A best offset on the grid's edge may have a better
   // one beyond it (a vehicle faster than the grid reaches): the grid then grows by a ring.
-  if (pyramid_.empty() || options_.start_search_radius <= 0.0) return x0;
+  if (pyramid_.empty() || options_.start_search_radius <= 0.0) return {x0, x0, 0.0};
   const ndt::VoxelGrid& g = pyramid_.front();
   const double step = 0.25 * g.options().voxel_size;
   int n = static_cast<int>(std::floor(options_.start_search_radius / step));
@@ -206,7 +210,7 @@ core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::
   // whose best-scored offset led to the right place is unchanged.
   std::size_t best = 0;
   double best_solved = std::numeric_limits<double>::infinity();
-  Eigen::Vector3d best_end = Eigen::Vector3d::Zero();
+  core::Pose6 best_end = x0;
   std::size_t solved = 0;
   for (std::size_t k = 0; k < n_kept && solved < kSearchSolved; ++k) {
     bool beside_better = false;
@@ -218,14 +222,45 @@ core::Pose6 ConsensusOdometry::search_start(const core::Pose6& x0, const Eigen::
     const ndt::NewtonResult r =
         ndt::newton_solve(g, test_, offset(kept[k].i, kept[k].j), options_.pyramid, nullptr,
                           &lookup_cache_, scan_motion());
-    const bool apart = solved == 1 || (r.pose.head<3>() - best_end).norm() > 0.5 * step;
+    const bool apart = solved == 1 || (r.pose.head<3>() - best_end.head<3>()).norm() > 0.5 * step;
     if (r.score < best_solved && apart) {
       best_solved = r.score;
-      best_end = r.pose.head<3>();
+      best_end = r.pose;
       best = k;
     }
   }
-  return offset(kept[best].i, kept[best].j);
+  return {offset(kept[best].i, kept[best].j), best_end, best_solved};
+}
+
+core::Pose6 ConsensusOdometry::search_gap_start(const core::Pose6& x0,
+                                                const Eigen::Isometry3d& predicted,
+                                                double along_radius) {
+  const Eigen::Vector3d heading = predicted.translation() - prev_pose_.translation();
+  StartSearch chosen = search_start(x0, heading, along_radius);
+  // The prediction carries the last scan's turn rate over the whole gap, but a vehicle that was
+  // turning may have ended its turn meanwhile (a corner taken while nothing arrived). Between
+  // the turn kept up and the turn ended, starts with the turn over the gap cut to a half and to
+  // nothing are searched too; the lowest solve wins, unless it ends in the same place and
+  // heading as the chosen one (the same minimum).
+  const Eigen::AngleAxisd turned(predicted.linear() * prev_pose_.linear().transpose());
+  const double turn = turned.angle() * turned.axis().dot(level_);
+  if (pyramid_.empty() || options_.start_search_radius <= 0.0 ||
+      options_.gap_turn_hypothesis_rad < 0.0 || std::abs(turn) < options_.gap_turn_hypothesis_rad) {
+    return chosen.start;
+  }
+  const double step = 0.25 * pyramid_.front().options().voxel_size;
+  for (double kept_fraction : {0.5, 0.0}) {
+    Eigen::Isometry3d start = predicted;
+    start.linear() = Eigen::AngleAxisd((kept_fraction - 1.0) * turn, level_).toRotationMatrix() *
+                     predicted.linear();
+    const StartSearch s = search_start(core::to_pose6(start), heading, along_radius);
+    const Eigen::Isometry3d a = core::to_isometry(s.end), b = core::to_isometry(chosen.end);
+    const bool apart =
+        (a.translation() - b.translation()).norm() > 0.5 * step ||
+        Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle() > kSameHeadingRad;
+    if (s.score < chosen.score && apart) chosen = s;
+  }
+  return chosen.start;
 }
 
 core::Pose6 ConsensusOdometry::coarse_to_fine(const core::Pose6& x0) {
@@ -728,13 +763,14 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
     if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) {
       x0 = search_start(x0, Eigen::Vector3d::UnitX(), 0.0,
-                        std::min(options_.max_speed * dt, options_.gap_search_radius));
+                        std::min(options_.max_speed * dt, options_.gap_search_radius))
+               .start;
     } else if (after_gap || jumped) {
       // Along the predicted motion, as far as the vehicle may have sped up or slowed down.
       const double along =
           std::min(options_.gap_search_radius,
                    options_.start_search_radius + 0.5 * options_.gap_acceleration * dt * dt);
-      x0 = search_start(x0, predicted.translation() - prev_pose_.translation(), along);
+      x0 = search_gap_start(x0, predicted, along);
     }
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
     // While every reference scan is near, the pyramid's pose: the match either takes it

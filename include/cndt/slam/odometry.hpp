@@ -101,6 +101,11 @@ struct OdometryOptions {
   /// time since the last scan; at most gap_search_radius), across it start_search_radius.
   double gap_acceleration = 2.0;    ///< m/s^2
   double gap_search_radius = 10.0;  ///< m
+  /// After a gap over which the prediction turns by more than this (the last scan's turn rate
+  /// times the gap), starts with that turn cut to a half and to nothing are searched as well: a
+  /// vehicle may have ended its turn while nothing arrived. 0 searches them after every gap; a
+  /// negative value never.
+  double gap_turn_hypothesis_rad = 0.05;
   /// The matches solve for the scan's motion with its pose (ndt::ScanMotion). A match ending
   /// beyond that model's first-order range (0.1 m / 0.01 rad from the pose the scan was
   /// deskewed for) is deskewed again and matched again, at most this many times.
@@ -336,8 +341,17 @@ class ConsensusOdometry {
   // max(along_radius, start_search_radius), across it start_search_radius; grown one step
   // outwards at a time while the best lies on its edge, up to grow_to (m) from x0; of the best
   // offsets in separate places, the one whose solve on the coarsest grid ends lowest.
-  core::Pose6 search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
+  struct StartSearch {
+    core::Pose6 start;  // the chosen offset from x0
+    core::Pose6 end;    // where its solve on the coarsest grid ended
+    double score;       // and that solve's score
+  };
+  StartSearch search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
                            double along_radius, double grow_to = 0.0);
+  // After a gap in the data: search_start from the prediction, and with its turn over the gap
+  // cut (gap_turn_hypothesis_rad).
+  core::Pose6 search_gap_start(const core::Pose6& x0, const Eigen::Isometry3d& predicted,
+                               double along_radius);
   void add_to_grids(std::span<const Eigen::Vector3d> points);
   void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
