@@ -331,6 +331,27 @@ std::size_t expect_pairs_within_5cm(const std::vector<sim::ScanStart>& starts,
   return long_pairs;
 }
 
+// The default odometry over `scans` with those after `last` lost until `resume`, whose revolution
+// the data resumes in mid-turn: the poses given, and their stamps in `truth_t`.
+std::vector<TimedPose> odometry_across_gap(const std::vector<core::Scan>& scans, std::size_t last,
+                                           std::size_t resume, std::vector<double>& truth_t) {
+  ConsensusOdometry odometry({});
+  std::vector<TimedPose> est;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    if (i > last && i < resume) continue;
+    const OdometryResult r = odometry.process(i == resume ? resumed_mid_turn(scans[i]) : scans[i]);
+    EXPECT_TRUE(r.pose.matrix().allFinite()) << "scan " << i;
+    if (i == resume) {
+      EXPECT_NE(r.flags & kOdomSkipped, 0u);
+    }
+    if ((r.flags & kOdomSkipped) != 0) continue;
+    const double t = static_cast<double>(scans[i].stamp.count()) * 1e-9;
+    est.push_back({t, r.pose});
+    truth_t.push_back(t);
+  }
+  return est;
+}
+
 // Two seconds without data (a cable pulled, a switch restarting): the revolution the data resumes
 // in is a sector, and the vehicle has sped up or slowed down meanwhile. The sector is not
 // matched, and the next whole revolution is found from a search along the way: the motion over
@@ -341,21 +362,8 @@ TEST(Odometry, ResumesAfterAGapInTheData) {
   const auto starts = drive_street(5.0, 2, 3, [&](core::Scan& scan) { scans.push_back(scan); });
   ASSERT_GE(scans.size(), 48u);
   constexpr std::size_t kLast = 19, kResume = 40;  // scans 20..39 are lost
-  ConsensusOdometry odometry({});
-  std::vector<TimedPose> est;
   std::vector<double> truth_t;
-  for (std::size_t i = 0; i < scans.size(); ++i) {
-    if (i > kLast && i < kResume) continue;
-    const OdometryResult r = odometry.process(i == kResume ? resumed_mid_turn(scans[i]) : scans[i]);
-    EXPECT_TRUE(r.pose.matrix().allFinite()) << "scan " << i;
-    if (i == kResume) {
-      EXPECT_NE(r.flags & kOdomSkipped, 0u);
-    }
-    if ((r.flags & kOdomSkipped) != 0) continue;
-    const double t = static_cast<double>(scans[i].stamp.count()) * 1e-9;
-    est.push_back({t, r.pose});
-    truth_t.push_back(t);
-  }
+  const std::vector<TimedPose> est = odometry_across_gap(scans, kLast, kResume, truth_t);
   EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 1u);
   EXPECT_GT((starts[kResume + 1].pose.translation() - starts[kLast].pose.translation()).norm(),
             10.0);  // the gap is long enough to matter
@@ -372,18 +380,8 @@ TEST(Odometry, ResumesAfterAGapInWhichTheTurnEnded) {
                                            [&](core::Scan& scan) { scans.push_back(scan); });
   ASSERT_GE(scans.size(), 58u);
   constexpr std::size_t kLast = 35, kResume = 44;  // scans 36..43 are lost
-  ConsensusOdometry odometry({});
-  std::vector<TimedPose> est;
   std::vector<double> truth_t;
-  for (std::size_t i = 0; i < scans.size(); ++i) {
-    if (i > kLast && i < kResume) continue;
-    const OdometryResult r = odometry.process(i == kResume ? resumed_mid_turn(scans[i]) : scans[i]);
-    EXPECT_TRUE(r.pose.matrix().allFinite()) << "scan " << i;
-    if ((r.flags & kOdomSkipped) != 0) continue;
-    const double t = static_cast<double>(scans[i].stamp.count()) * 1e-9;
-    est.push_back({t, r.pose});
-    truth_t.push_back(t);
-  }
+  const std::vector<TimedPose> est = odometry_across_gap(scans, kLast, kResume, truth_t);
   EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 0u);
 }
 
