@@ -140,9 +140,9 @@ ConsensusOdometry::StartSearch ConsensusOdometry::search_start(const core::Pose6
   // is old and the prediction off along the way. Score a horizontal grid of offsets on the
   // coarsest grid and start from the best. A best offset on the grid's edge may have a better
   // one beyond it (a vehicle faster than the grid reaches): the grid then grows by a ring.
-  if (pyramid_.empty() || options_.start_search_radius <= 0.0) return {x0, x0, 0.0};
+  if (!start_search_on()) return {x0, x0, 0.0};
   const ndt::VoxelGrid& g = pyramid_.front();
-  const double step = 0.25 * g.options().voxel_size;
+  const double step = search_step();
   int n = static_cast<int>(std::floor(options_.start_search_radius / step));
   int m = std::max(n, static_cast<int>(std::floor(along_radius / step)));
   const int limit = static_cast<int>(std::floor(grow_to / step));
@@ -244,11 +244,10 @@ core::Pose6 ConsensusOdometry::search_gap_start(const core::Pose6& x0,
   // heading as the chosen one (the same minimum).
   const Eigen::AngleAxisd turned(predicted.linear() * prev_pose_.linear().transpose());
   const double turn = turned.angle() * turned.axis().dot(level_);
-  if (pyramid_.empty() || options_.start_search_radius <= 0.0 ||
-      options_.gap_turn_hypothesis_rad < 0.0 || std::abs(turn) < options_.gap_turn_hypothesis_rad) {
+  if (!start_search_on() || options_.gap_turn_hypothesis_rad < 0.0 ||
+      std::abs(turn) < options_.gap_turn_hypothesis_rad) {
     return chosen.start;
   }
-  const double step = 0.25 * pyramid_.front().options().voxel_size;
   for (double kept_fraction : {0.5, 0.0}) {
     Eigen::Isometry3d start = predicted;
     start.linear() = Eigen::AngleAxisd((kept_fraction - 1.0) * turn, level_).toRotationMatrix() *
@@ -256,7 +255,7 @@ core::Pose6 ConsensusOdometry::search_gap_start(const core::Pose6& x0,
     const StartSearch s = search_start(core::to_pose6(start), heading, along_radius);
     const Eigen::Isometry3d a = core::to_isometry(s.end), b = core::to_isometry(chosen.end);
     const bool apart =
-        (a.translation() - b.translation()).norm() > 0.5 * step ||
+        (a.translation() - b.translation()).norm() > 0.5 * search_step() ||
         Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle() > kSameHeadingRad;
     if (s.score < chosen.score && apart) chosen = s;
   }

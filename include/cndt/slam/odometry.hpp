@@ -348,6 +348,9 @@ class ConsensusOdometry {
   };
   StartSearch search_start(const core::Pose6& x0, const Eigen::Vector3d& heading,
                            double along_radius, double grow_to = 0.0);
+  bool start_search_on() const { return !pyramid_.empty() && options_.start_search_radius > 0.0; }
+  // The spacing of the search's offsets: a quarter of the coarsest grid's voxel.
+  double search_step() const { return 0.25 * pyramid_.front().options().voxel_size; }
   // After a gap in the data: search_start from the prediction, and with its turn over the gap
   // cut (gap_turn_hypothesis_rad).
   core::Pose6 search_gap_start(const core::Pose6& x0, const Eigen::Isometry3d& predicted,
