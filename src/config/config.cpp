@@ -227,6 +227,13 @@ const std::vector<Field>& fields() {
        "leaves nearly free (a bare street or corridor) the prediction decides instead of noise "
        "(0 = off; docs/odometry.md).",
        "", 0, 1},
+      {"odometry", "prior_acceleration_threshold_mps2",
+       CNDT_REF(odometry.prior_acceleration_threshold_mps2),
+       "While the speed changes faster than this the same way at two scans in a row (braking, "
+       "pulling away), the prior's centre moves on by the change of speed: the constant-velocity "
+       "prediction is a dt^2 / 2 off such a vehicle, and the pull would hold a weakly held match "
+       "there (0 = the centre always at constant velocity; docs/odometry.md, \"Position prior\").",
+       "m/s^2", 0, 1000},
       {"odometry", "surface_patches", CNDT_REF(odometry.surface_patches),
        "A reference voxel whose neighbourhood holds a plane is matched as a piece of that plane "
        "(its own spread along the normal, along the plane at least the voxel size squared) "

@@ -100,6 +100,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.max_acceleration = od.max_acceleration_mps2;
   o.max_speed = od.max_speed_mps;
   o.prior_weight = od.prior_weight;
+  o.prior_acceleration_threshold = od.prior_acceleration_threshold_mps2;
   o.surface_patches = od.surface_patches;
   o.patches_after_scans = static_cast<std::size_t>(od.patches_after_scans);
   o.patch_max_tilt_deg = od.patch_max_tilt_deg;

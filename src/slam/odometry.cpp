@@ -759,6 +759,17 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
     core::Pose6 x0 = core::to_pose6(predicted);
     prior_.center = x0;
     prior_.relative_weight = trusted ? options_.prior_weight : 0.0;
+    // The prediction keeps a constant velocity. While the vehicle brakes or pulls away faster
+    // than prior_acceleration_threshold it is a dt^2 / 2 ahead of or behind it, and the prior
+    // would hold a weakly held match there: the prior's centre then moves on by the change of
+    // speed (acceleration_ along the motion).
+    if (acceleration_ != 0.0) {
+      const Eigen::Vector3d along = predicted.translation() - prev_pose_.translation();
+      if (along.norm() > 1e-3) {
+        prior_.center.head<3>() +=
+            0.5 * acceleration_ * dt * (prev_period_s_ + dt) * along.normalized();
+      }
+    }
     if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) {
       x0 = search_start(x0, Eigen::Vector3d::UnitX(), 0.0,
@@ -870,6 +881,9 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.
   res.dt = dt;
+  const Eigen::Isometry3d older_motion = prev_motion_;
+  const double older_period_s = prev_period_s_;
+  const bool have_older = have_prev2_ && prediction_trusted_;  // still the older match's
   prev_motion_ = prev_pose_.inverse() * res.pose;
   prev_period_s_ = std::max(dt, 1e-3);
   if (first_velocity && dt < 0.5 * period_s_) {
@@ -883,6 +897,21 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   prediction_trusted_ = !degenerate_match &&
                         (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomRematched)) == 0;
   clean_run_ = degenerate_match ? 0 : clean_run_ + 1;
+  // The change of speed between the mean speeds of the last two steps, (h1 + h2) / 2 apart, per
+  // second. acceleration_ takes it while two such changes in a row exceed the threshold with
+  // the same sign (the smaller of the two): a match's error makes one step long and the next
+  // short, which changes the speed one way and then back.
+  double change = 0.0;
+  if (have_older && prediction_trusted_ && options_.prior_acceleration_threshold > 0.0) {
+    const double h1 = older_period_s, h2 = prev_period_s_;
+    change = (prev_motion_.translation().norm() / h2 - older_motion.translation().norm() / h1) /
+             (0.5 * (h1 + h2));
+    if (std::abs(change) <= options_.prior_acceleration_threshold) change = 0.0;
+  }
+  acceleration_ = change * last_change_ > 0.0
+                      ? std::copysign(std::min(std::abs(change), std::abs(last_change_)), change)
+                      : 0.0;
+  last_change_ = change;
   have_prev2_ = true;
   newest_unskewed_ = false;
   reference_due_ = true;  // at prev_pose_, set next

@@ -56,6 +56,7 @@ struct Config {
     double max_acceleration_mps2 = 10.0;
     double max_speed_mps = 40.0;
     double prior_weight = 0.003;
+    double prior_acceleration_threshold_mps2 = 2.0;
     bool surface_patches = true;
     std::int64_t patches_after_scans = 4;
     double patch_max_tilt_deg = 25.0;

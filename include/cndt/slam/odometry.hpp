@@ -212,6 +212,11 @@ struct OdometryOptions {
   /// degenerate_conditioning, the pull's curvature equals the scene's along a direction at the
   /// degeneracy threshold and exceeds it below.
   double prior_weight = 0.003;
+  /// While the speed changes faster than this, m/s^2, the same way at two scans in a row
+  /// (braking, pulling away), the prior's centre moves on by the change of speed (the smaller of
+  /// the two): the constant-velocity prediction is a dt^2 / 2 off such a vehicle, and the pull
+  /// would hold a weakly held match there. 0 = the centre always at constant velocity.
+  double prior_acceleration_threshold = 2.0;
   /// For evaluation only (0, the default: off). Moves the initial guess of every scan's match by
   /// a pseudo-random amount of at most 0.5e-9 (m, rad) per coordinate drawn from this seed: a
   /// match that is well posed lands within its convergence tolerance of the same pose, so
@@ -459,6 +464,9 @@ class ConsensusOdometry {
   bool clock_jumped_ = false;  // since the last scan given a pose
   double revolution_s_ = 0.1;  // span of the last whole revolution
   double prev_period_s_ = 0.1;
+  // The change of speed, m/s^2, over the last two steps beyond prior_acceleration_threshold
+  // (else 0), and the one the prior's centre takes (the smaller of the last two, if alike).
+  double last_change_ = 0.0, acceleration_ = 0.0;
 };
 
 }  // namespace cndt::slam
