@@ -234,8 +234,8 @@ ConsensusOdometry::StartSearch ConsensusOdometry::search_start(const core::Pose6
 
 core::Pose6 ConsensusOdometry::search_gap_start(const core::Pose6& x0,
                                                 const Eigen::Isometry3d& predicted,
+                                                const Eigen::Vector3d& heading,
                                                 double along_radius) {
-  const Eigen::Vector3d heading = predicted.translation() - prev_pose_.translation();
   StartSearch chosen = search_start(x0, heading, along_radius);
   // The prediction carries the last scan's turn rate over the whole gap, but a vehicle that was
   // turning may have ended its turn meanwhile (a corner taken while nothing arrived). Between
@@ -727,6 +727,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   rms_range_ = scan_src_.empty() ? 0.0 : std::sqrt(range2 / static_cast<double>(scan_src_.size()));
   scan_motion_.lever = lever_;
   const Eigen::Isometry3d predicted = prev_pose_ * motion;
+  const Eigen::Vector3d predicted_step = predicted.translation() - prev_pose_.translation();
   const Eigen::Isometry3d predicted_deskew =  // over one period
       extrapolate_ == 0.0 ? scale_motion(motion, to_period_) : deskew_motion(predicted);
   deskew_for(predicted_deskew, core::to_pose6(predicted));
@@ -763,12 +764,9 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
     // than prior_acceleration_threshold it is a dt^2 / 2 ahead of or behind it, and the prior
     // would hold a weakly held match there: the prior's centre then moves on by the change of
     // speed (acceleration_ along the motion).
-    if (acceleration_ != 0.0) {
-      const Eigen::Vector3d along = predicted.translation() - prev_pose_.translation();
-      if (along.norm() > 1e-3) {
-        prior_.center.head<3>() +=
-            0.5 * acceleration_ * dt * (prev_period_s_ + dt) * along.normalized();
-      }
+    if (acceleration_ != 0.0 && predicted_step.norm() > 1e-3) {
+      prior_.center.head<3>() +=
+          0.5 * acceleration_ * dt * (prev_period_s_ + dt) * predicted_step.normalized();
     }
     if (options_.guess_jitter_seed != 0) jitter(x0);
     if (!have_prev2_) {
@@ -780,7 +778,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
       const double along =
           std::min(options_.gap_search_radius,
                    options_.start_search_radius + 0.5 * options_.gap_acceleration * dt * dt);
-      x0 = search_gap_start(x0, predicted, along);
+      x0 = search_gap_start(x0, predicted, predicted_step, along);
     }
     if (!have_motion_prior_ || options_.pyramid_every_scan) x0 = coarse_to_fine(x0);
     // While every reference scan is near, the pyramid's pose: the match either takes it
@@ -881,9 +879,10 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   }
   // Past the first scan (returned above), so the motion between the last two scans is known.
   res.dt = dt;
-  const Eigen::Isometry3d older_motion = prev_motion_;
+  // The last step's mean speed, and whether its match was clean (not yet updated for this one).
+  const double older_speed = prev_motion_.translation().norm() / prev_period_s_;
   const double older_period_s = prev_period_s_;
-  const bool have_older = have_prev2_ && prediction_trusted_;  // still the older match's
+  const bool have_older = have_prev2_ && prediction_trusted_;
   prev_motion_ = prev_pose_.inverse() * res.pose;
   prev_period_s_ = std::max(dt, 1e-3);
   if (first_velocity && dt < 0.5 * period_s_) {
@@ -904,8 +903,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   double change = 0.0;
   if (have_older && prediction_trusted_ && options_.prior_acceleration_threshold > 0.0) {
     const double h1 = older_period_s, h2 = prev_period_s_;
-    change = (prev_motion_.translation().norm() / h2 - older_motion.translation().norm() / h1) /
-             (0.5 * (h1 + h2));
+    change = (prev_motion_.translation().norm() / h2 - older_speed) / (0.5 * (h1 + h2));
     if (std::abs(change) <= options_.prior_acceleration_threshold) change = 0.0;
   }
   acceleration_ = change * last_change_ > 0.0

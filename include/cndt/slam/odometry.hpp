@@ -356,10 +356,10 @@ class ConsensusOdometry {
   bool start_search_on() const { return !pyramid_.empty() && options_.start_search_radius > 0.0; }
   // The spacing of the search's offsets: a quarter of the coarsest grid's voxel.
   double search_step() const { return 0.25 * pyramid_.front().options().voxel_size; }
-  // After a gap in the data: search_start from the prediction, and with its turn over the gap
-  // cut (gap_turn_hypothesis_rad).
+  // After a gap in the data: search_start from the prediction (heading: its step from the last
+  // pose), and with its turn over the gap cut (gap_turn_hypothesis_rad).
   core::Pose6 search_gap_start(const core::Pose6& x0, const Eigen::Isometry3d& predicted,
-                               double along_radius);
+                               const Eigen::Vector3d& heading, double along_radius);
   void add_to_grids(std::span<const Eigen::Vector3d> points);
   void remove_from_grids(std::span<const Eigen::Vector3d> points);
   void finalize_grids();
