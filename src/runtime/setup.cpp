@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "cndt/core/pose.hpp"
 
@@ -98,6 +99,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.max_map_voxels = static_cast<std::size_t>(od.max_map_voxels);
   o.min_points = static_cast<std::size_t>(od.min_points);
   o.max_acceleration = od.max_acceleration_mps2;
+  o.max_angular_acceleration = od.max_angular_acceleration_degps2 * std::numbers::pi / 180.0;
   o.max_speed = od.max_speed_mps;
   o.prior_weight = od.prior_weight;
   o.prior_acceleration_threshold = od.prior_acceleration_threshold_mps2;

@@ -536,6 +536,55 @@ TEST(Odometry, BrakingIsNotHeldToTheSpeedItHad) {
   EXPECT_LT(followed, 0.05);
 }
 
+// A campus drive pulling away from rest among twelve pedestrians, with 2.2 cm of range noise and
+// a fifth of the packets lost (`accuracy_random.sh --draw 63:24`, d63-21). Half a second into
+// the pull-away, with the local map still the scans taken at rest, the fine match turned the
+// sensor by 4.8 deg in one scan (the rings of a reference taken where the sensor stands turn
+// into themselves and leave the yaw to the few other features) and the estimate never
+// recovered (ATE 48 m over the 20 s drive). The angular acceleration check matches such a scan
+// again from the prediction. The pull-away's pairs stay poor (0.47 m at worst: the rest scans'
+// rings hold the next matches back for a few scans, "Starts from rest" in docs/odometry.md);
+// asserted are the turns and where the drive ends.
+TEST(Odometry, PullingAwayAMatchDoesNotTurnByDegreesInOneScan) {
+  sim::Scene scene = sim::build_scene(sim::SceneKind::kCampus, 20.0, 12, 63021, 0, 14.7);
+  scene.start_still_s = 2.4;
+  sim::LidarSimOptions sensor = sensor_at(600, 5.0, 63021, 0.20);
+  sensor.noise_m = 0.022;
+  // A scan whose first packets were lost starts later than the simulator's scan: the truth at
+  // the stamps themselves.
+  const double t0 = static_cast<double>(sensor.start_time_ns) * 1e-9;
+  struct Errors {
+    double worst_turn_deg = 0.0, end_m = 0.0;
+  };
+  const auto errors = [&](double max_angular_acceleration) {
+    OdometryOptions options;
+    options.max_angular_acceleration = max_angular_acceleration;
+    const SceneRun run = run_scene(scene, sensor, options);
+    EXPECT_GE(run.est.size(), 45u);
+    Errors e;
+    const auto truth = [&](std::size_t k) { return scene.sensor_pose(run.truth_t[k] - t0); };
+    for (std::size_t k = 0; k + 1 < run.est.size(); ++k) {
+      const Eigen::Isometry3d dg = truth(k).inverse() * truth(k + 1);
+      const Eigen::Isometry3d de = run.est[k].pose.inverse() * run.est[k + 1].pose;
+      e.worst_turn_deg =
+          std::max(e.worst_turn_deg, Eigen::AngleAxisd((dg.inverse() * de).linear()).angle() *
+                                         180.0 / std::numbers::pi);
+    }
+    const Eigen::Isometry3d dg = truth(0).inverse() * truth(run.est.size() - 1);
+    const Eigen::Isometry3d de = run.est.front().pose.inverse() * run.est.back().pose;
+    e.end_m = (dg.inverse() * de).translation().norm();
+    return e;
+  };
+  const Errors checked = errors(OdometryOptions{}.max_angular_acceleration);
+  const Errors unchecked = errors(0.0);
+  std::printf(
+      "pulling away: worst turn of a pair %.2f deg, %.3f m off at the end (turns checked); "
+      "%.2f deg, %.3f m (not checked)\n",
+      checked.worst_turn_deg, checked.end_m, unchecked.worst_turn_deg, unchecked.end_m);
+  EXPECT_LT(checked.worst_turn_deg, 1.5);
+  EXPECT_LT(checked.end_m, 0.3);
+}
+
 TEST(Odometry, StartsAtMotorwaySpeed) {
   const sim::Scene scene = sim::build_scene(sim::SceneKind::kStreet, 20.0, 4, 5, 0, 40.0);
   const SceneRun run = run_scene(scene, 2.0, 5);

@@ -54,6 +54,7 @@ struct Config {
     std::int64_t max_map_voxels = 400'000;
     std::int64_t min_points = 200;
     double max_acceleration_mps2 = 10.0;
+    double max_angular_acceleration_degps2 = 300.0;
     double max_speed_mps = 40.0;
     double prior_weight = 0.003;
     double prior_acceleration_threshold_mps2 = 2.0;
