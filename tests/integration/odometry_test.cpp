@@ -538,8 +538,8 @@ TEST(Odometry, BrakingIsNotHeldToTheSpeedItHad) {
 
 // A campus drive pulling away from rest among twelve pedestrians, with 2.2 cm of range noise and
 // a fifth of the packets lost (`accuracy_random.sh --draw 63:24`, d63-21). Half a second into
-// the pull-away, with the local map still the scans taken at rest, the fine match turned the
-// sensor by 4.8 deg in one scan (the rings of a reference taken where the sensor stands turn
+// the pull-away, with the local map still the scans taken at rest, the match turned the sensor
+// by 4.8 deg in one scan (the rings of a reference taken where the sensor stands turn
 // into themselves and leave the yaw to the few other features) and the estimate never
 // recovered (ATE 48 m over the 20 s drive). The angular acceleration check matches such a scan
 // again from the prediction. The pull-away's pairs stay poor (0.47 m at worst: the rest scans'
