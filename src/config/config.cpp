@@ -216,12 +216,12 @@ const std::vector<Field>& fields() {
        "m/s^2", 0, 1000},
       {"odometry", "max_angular_acceleration_degps2",
        CNDT_REF(odometry.max_angular_acceleration_degps2),
-       "Largest angular acceleration of the vehicle, its body's pitch and roll on the suspension "
-       "included. A match whose rotation is farther from the constant-velocity prediction's "
-       "than this allows over one time step (3 deg at 300 deg/s^2 and 10 Hz, at least 1.5 deg) "
-       "is matched again from the prediction, as for max_acceleration_mps2: pulling away among "
-       "pedestrians a match can turn by degrees in one scan (0 = never; docs/odometry.md, "
-       "\"Turn check\").",
+       "Largest angular acceleration of the vehicle about the sensor's axis. A match whose turn "
+       "about the axis is farther from the constant-velocity prediction's than this allows over "
+       "one time step (3 deg at 300 deg/s^2 and 10 Hz, at least 1.5 deg) is matched again from "
+       "the prediction, as for max_acceleration_mps2: pulling away among pedestrians a match can "
+       "turn by degrees in one scan, as the rings turned about the axis lie on themselves "
+       "(0 = never; docs/odometry.md, \"Turn check\").",
        "deg/s^2", 0, 100000},
       {"odometry", "max_speed_mps", CNDT_REF(odometry.max_speed_mps),
        "Top speed of the vehicle. The first match has no velocity to start from: horizontal "

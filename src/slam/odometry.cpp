@@ -33,6 +33,12 @@ constexpr double kSameHeadingRad = std::numbers::pi / 180.0;
 // 1200 rpm (scans half as dense) put its matches up to 1.2 deg off the prediction.
 constexpr double kMinTurnAllowance = 1.5 * std::numbers::pi / 180.0;
 
+// The rotation `r`'s turn about the z axis (the rotation vector's z component), rad.
+double heading_change(const Eigen::Matrix3d& r) {
+  const Eigen::AngleAxisd aa(r);
+  return aa.angle() * aa.axis().z();
+}
+
 // Smallest over largest eigenvalue of the translation block of an NDT Hessian: how evenly the
 // scene constrains the position. Below 0 when the match ended on a saddle; 0 for no Hessian.
 double translation_conditioning(const ndt::Matrix6d& hessian) {
@@ -828,17 +834,20 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
       deskew_at(res.pose);
       x0 = core::to_pose6(res.pose);
     }
-    // A match that implies an impossible acceleration, linear or angular: matched again from
-    // the prediction (deskewed with it), without the pyramid. Constant acceleration a moves the
-    // pose a dt^2 / 2 off the constant-velocity prediction; the other half of the allowance is
-    // for the error of the velocity itself. A turn rate from sparse scans (1200 rpm) is off by
-    // up to a degree per scan, whatever dt: the turn's allowance is at least kMinTurnAllowance.
+    // A match that implies an impossible acceleration, linear or about the sensor's axis:
+    // matched again from the prediction (deskewed with it), without the pyramid. Constant
+    // acceleration a moves the pose a dt^2 / 2 off the constant-velocity prediction; the other
+    // half of the allowance is for the error of the velocity itself. A turn rate from sparse
+    // scans (1200 rpm) is off by up to a degree per scan, whatever dt: the turn's allowance is
+    // at least kMinTurnAllowance. Only the turn about the axis: rings turned about it lie on
+    // themselves, so nothing but the few other features holds it; roll and pitch move the rings
+    // and the ground holds them (their scatter on sparse scans is not a wrong minimum).
     const bool jumped_away =
         (options_.max_acceleration > 0.0 &&
          (res.pose.translation() - predicted.translation()).norm() >
              options_.max_acceleration * dt * dt) ||
         (options_.max_angular_acceleration > 0.0 &&
-         Eigen::AngleAxisd(predicted.linear().transpose() * res.pose.linear()).angle() >
+         std::abs(heading_change(predicted.linear().transpose() * res.pose.linear())) >
              std::max(options_.max_angular_acceleration * dt * dt, kMinTurnAllowance));
     if (trusted && jumped_away) {
       res.flags |= kOdomRematched;

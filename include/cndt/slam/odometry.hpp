@@ -207,12 +207,13 @@ struct OdometryOptions {
   /// near zero motion): the scan is matched again from the prediction, without the pyramid, and
   /// flagged kOdomRematched.
   double max_acceleration = 10.0;
-  /// Largest angular acceleration the platform can have, rad/s^2 (300 deg/s^2; 0 = no check):
-  /// the same check for the match's rotation, which may lie no farther from the prediction's
-  /// than a dt^2 (3 deg at 10 Hz; at least 1.5 deg, for the scatter of the turn rates measured on
-  /// sparse scans at 1200 rpm). The rings of a young reference turn into themselves and leave
-  /// the yaw to the few other features, so a match pulling away among pedestrians can turn by
-  /// degrees in one scan; the body's pitch and roll on its suspension reach a few rad/s^2.
+  /// Largest angular acceleration about the sensor's axis the platform can have, rad/s^2
+  /// (300 deg/s^2; 0 = no check): the same check for the match's turn about its z axis, which
+  /// may lie no farther from the prediction's than a dt^2 (3 deg at 10 Hz; at least 1.5 deg,
+  /// for the scatter of the turn rates measured on sparse scans at 1200 rpm). Rings turned about
+  /// the axis lie on themselves and leave that turn to the few other features, so a match
+  /// pulling away among pedestrians can turn by degrees in one scan. Roll and pitch are not
+  /// checked: the ground holds them, and a sparse scan's scatter in them is not a wrong minimum.
   double max_angular_acceleration = 300.0 * std::numbers::pi / 180.0;
   /// Weight of the pull of each match towards the constant-velocity prediction's position,
   /// relative to the scene's strongest constraint on it (ndt::PositionPrior; 0 = none). Applied
