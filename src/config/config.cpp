@@ -229,6 +229,28 @@ const std::vector<Field>& fields() {
        "search grows, up to the distance this speed covers between the first two scans (4 m at "
        "40 m/s and 10 Hz, at most 10 m; 0 = no growing; docs/odometry.md).",
        "m/s", 0, 100},
+      {"odometry", "start_search_radius_m", CNDT_REF(odometry.start_search_radius_m),
+       "Before the first match, and after a gap in the data, horizontal offsets this far from "
+       "the start (the prediction after a gap) are scored on the coarsest grid, in 0.5 m steps, "
+       "and the best one starts the match (docs/odometry.md, \"Starting at speed\", \"Gaps in "
+       "the data\").",
+       "m", 0, 10},
+      {"odometry", "gap_acceleration_mps2", CNDT_REF(odometry.gap_acceleration_mps2),
+       "After a gap in the data the vehicle may have sped up or slowed down: the search looks "
+       "along the predicted motion up to start_search_radius_m plus this acceleration's "
+       "dt^2 / 2 from the prediction (dt the time since the last scan; 3 s: 9 m more at "
+       "2 m/s^2), across it start_search_radius_m (docs/odometry.md, \"Gaps in the data\").",
+       "m/s^2", 0, 100},
+      {"odometry", "gap_search_radius_m", CNDT_REF(odometry.gap_search_radius_m),
+       "The farthest those searches reach: along the motion after a gap, and the first match's "
+       "growing search (max_speed_mps).",
+       "m", 0, 100},
+      {"odometry", "gap_turn_hypothesis_deg", CNDT_REF(odometry.gap_turn_hypothesis_deg),
+       "After a gap over which the prediction turns by more than this (the last scan's turn "
+       "rate times the gap), starts with that turn halved and taken out are searched as well: "
+       "the vehicle may have ended its turn while nothing arrived (0 = after every gap; "
+       "negative = never; docs/odometry.md, \"Gaps in the data\").",
+       "deg", -1, 180},
       {"odometry", "prior_weight", CNDT_REF(odometry.prior_weight),
        "Pull of every match towards the constant-velocity prediction's position, relative to "
        "the scene's strongest constraint on the position (the largest eigenvalue of the NDT "

@@ -101,6 +101,10 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.max_acceleration = od.max_acceleration_mps2;
   o.max_angular_acceleration = od.max_angular_acceleration_degps2 * std::numbers::pi / 180.0;
   o.max_speed = od.max_speed_mps;
+  o.start_search_radius = od.start_search_radius_m;
+  o.gap_acceleration = od.gap_acceleration_mps2;
+  o.gap_search_radius = od.gap_search_radius_m;
+  o.gap_turn_hypothesis_rad = od.gap_turn_hypothesis_deg * std::numbers::pi / 180.0;
   o.prior_weight = od.prior_weight;
   o.prior_acceleration_threshold = od.prior_acceleration_threshold_mps2;
   o.surface_patches = od.surface_patches;

@@ -90,6 +90,35 @@ map_admit_distance_m = 0.7
   EXPECT_FALSE(o.level_frame);
 }
 
+// The start and gap search keys reach the odometry (the turn in degrees), and left out they are
+// the odometry's own defaults.
+TEST(Setup, SearchKeysReachTheOdometry) {
+  auto defaults = make_setup(config::Config{});
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  const slam::OdometryOptions library;
+  const slam::OdometryOptions& d = defaults.value().pipeline.odometry;
+  EXPECT_EQ(d.start_search_radius, library.start_search_radius);
+  EXPECT_EQ(d.gap_acceleration, library.gap_acceleration);
+  EXPECT_EQ(d.gap_search_radius, library.gap_search_radius);
+  EXPECT_DOUBLE_EQ(d.gap_turn_hypothesis_rad, library.gap_turn_hypothesis_rad);
+  auto c = config::parse_config(R"(
+[odometry]
+start_search_radius_m = 3.0
+gap_acceleration_mps2 = 4.5
+gap_search_radius_m = 20.0
+gap_turn_hypothesis_deg = -1
+)",
+                                "search.toml");
+  ASSERT_TRUE(c) << c.error().message;
+  auto set = make_setup(c.value());
+  ASSERT_TRUE(set) << set.error().message;
+  const slam::OdometryOptions& o = set.value().pipeline.odometry;
+  EXPECT_EQ(o.start_search_radius, 3.0);
+  EXPECT_EQ(o.gap_acceleration, 4.5);
+  EXPECT_EQ(o.gap_search_radius, 20.0);
+  EXPECT_LT(o.gap_turn_hypothesis_rad, 0.0);  // never
+}
+
 // The scans of a simulated drive, as the driver assembles them.
 std::vector<core::Scan> simulated_scans(sim::SceneKind kind, double seconds) {
   const sim::Scene scene = sim::build_scene(kind, seconds, 4, 1);

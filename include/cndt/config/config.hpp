@@ -56,6 +56,10 @@ struct Config {
     double max_acceleration_mps2 = 10.0;
     double max_angular_acceleration_degps2 = 300.0;
     double max_speed_mps = 40.0;
+    double start_search_radius_m = 2.0;
+    double gap_acceleration_mps2 = 2.0;
+    double gap_search_radius_m = 10.0;
+    double gap_turn_hypothesis_deg = 3.0;
     double prior_weight = 0.003;
     double prior_acceleration_threshold_mps2 = 2.0;
     bool surface_patches = true;

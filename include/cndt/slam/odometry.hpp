@@ -105,8 +105,8 @@ struct OdometryOptions {
   /// After a gap over which the prediction turns by more than this (the last scan's turn rate
   /// times the gap), starts with that turn cut to a half and to nothing are searched as well: a
   /// vehicle may have ended its turn while nothing arrived. 0 searches them after every gap; a
-  /// negative value never.
-  double gap_turn_hypothesis_rad = 0.05;
+  /// negative value never. 3 deg.
+  double gap_turn_hypothesis_rad = 3.0 * std::numbers::pi / 180.0;
   /// The matches solve for the scan's motion with its pose (ndt::ScanMotion). A match ending
   /// beyond that model's first-order range (0.1 m / 0.01 rad from the pose the scan was
   /// deskewed for) is deskewed again and matched again, at most this many times.
