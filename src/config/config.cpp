@@ -223,6 +223,12 @@ const std::vector<Field>& fields() {
        "turn by degrees in one scan, as the rings turned about the axis lie on themselves "
        "(0 = never; docs/odometry.md, \"Turn check\").",
        "deg/s^2", 0, 100000},
+      {"odometry", "bound_degenerate_slide", CNDT_REF(odometry.bound_degenerate_slide),
+       "A degenerate match (the scene leaves the position free along some direction) is moved "
+       "along that direction back to within the distance max_acceleration_mps2 allows from the "
+       "constant-velocity prediction: what it did there was the solver's slide, not the vehicle's "
+       "motion. Only once three matches in a row were clean, so that the prediction was measured "
+       "(docs/odometry.md, \"Degenerate slide\")."},
       {"odometry", "max_speed_mps", CNDT_REF(odometry.max_speed_mps),
        "Top speed of the vehicle. The first match has no velocity to start from: horizontal "
        "offsets up to 2 m are scored, and while the best lies on the edge of those scored the "

@@ -100,6 +100,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.min_points = static_cast<std::size_t>(od.min_points);
   o.max_acceleration = od.max_acceleration_mps2;
   o.max_angular_acceleration = od.max_angular_acceleration_degps2 * std::numbers::pi / 180.0;
+  o.bound_degenerate_slide = od.bound_degenerate_slide;
   o.max_speed = od.max_speed_mps;
   o.start_search_radius = od.start_search_radius_m;
   o.gap_acceleration = od.gap_acceleration_mps2;

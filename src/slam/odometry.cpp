@@ -33,6 +33,11 @@ constexpr double kSameHeadingRad = std::numbers::pi / 180.0;
 // 1200 rpm (scans half as dense) put its matches up to 1.2 deg off the prediction.
 constexpr double kMinTurnAllowance = 1.5 * std::numbers::pi / 180.0;
 
+// Clean matches in a row that arm bound_degenerate_slide: a start whose every match is degenerate
+// by the conditioning test (the ground seen from a sensor pitched 30 deg down) can still be
+// right, and its prediction then has nothing better behind it than those matches.
+constexpr std::size_t kSlideBoundCleanRun = 3;
+
 // The rotation `r`'s turn about the z axis (the rotation vector's z component), rad.
 double heading_change(const Eigen::Matrix3d& r) {
   const Eigen::AngleAxisd aa(r);
@@ -539,6 +544,24 @@ bool ConsensusOdometry::short_of_pyramid(const core::Pose6& pose,
          std::max(options_.near_shortfall, options_.near_shortfall_fraction * moved);
 }
 
+bool ConsensusOdometry::bound_slide(double room, Eigen::Isometry3d& pose) const {
+  const Eigen::Matrix3d h = match_hessian_.topLeftCorner<3, 3>();
+  if (!h.allFinite()) return false;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(h);
+  const double largest = es.eigenvalues()(2);
+  const Eigen::Vector3d off = pose.translation() - core::to_isometry(prior_.center).translation();
+  Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 2; ++i) {  // the largest eigenvalue's direction is the best fixed
+    if (es.eigenvalues()(i) >= options_.degenerate_conditioning * largest) continue;
+    const Eigen::Vector3d free = es.eigenvectors().col(i);
+    const double along = free.dot(off);
+    if (std::abs(along) > room) shift += free * (along - std::copysign(room, along));
+  }
+  if (shift.isZero(0.0)) return false;
+  pose.translation() -= shift;
+  return true;
+}
+
 bool ConsensusOdometry::reference_near(const core::Pose6& pose) const {
   const Eigen::Isometry3d at = core::to_isometry(pose);
   for (std::size_t i = 0; i < in_grids_; ++i) {
@@ -601,6 +624,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res,
   }
   res.fine_iterations += r.iterations;
   res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
+  match_hessian_ = r.hessian;
   res.points = r.matched;
   res.pose = core::to_isometry(r.pose);
   return r.converged;
@@ -867,6 +891,14 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
       deskew_at(core::to_isometry(x0));
       converged = match(x0, res, near_pyramid);
     }
+    // Degenerate: along the free directions the match slid as far as nothing held it, and the
+    // vehicle cannot have left the prediction by more than the acceleration check allows. Only
+    // once clean matches have measured the velocity (slide_bound_armed_), not across a gap.
+    if (options_.bound_degenerate_slide && options_.max_acceleration > 0.0 && slide_bound_armed_ &&
+        have_prev2_ && !after_gap && !jumped && degenerate(res.conditioning) &&
+        bound_slide(options_.max_acceleration * dt * dt, res.pose)) {
+      res.flags |= kOdomSlideBounded;
+    }
     if (!converged) res.flags |= kOdomNotConverged;
     have_motion_prior_ = converged;
     if (!finite(res.pose)) {
@@ -914,6 +946,10 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   prediction_trusted_ = !degenerate_match &&
                         (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomRematched)) == 0;
   clean_run_ = degenerate_match ? 0 : clean_run_ + 1;
+  // The slide bound needs a prediction measured by clean matches: armed by kSlideBoundCleanRun
+  // of them in a row (counted across a gap), disarmed by a gap or a clock jump.
+  if (after_gap || jumped) slide_bound_armed_ = false;
+  if (clean_run_ >= kSlideBoundCleanRun) slide_bound_armed_ = true;
   // The change of speed between the mean speeds of the last two steps, (h1 + h2) / 2 apart, per
   // second. acceleration_ takes it while two such changes in a row exceed the threshold with
   // the same sign (the smaller of the two): a match's error makes one step long and the next

@@ -55,6 +55,7 @@ struct Config {
     std::int64_t min_points = 200;
     double max_acceleration_mps2 = 10.0;
     double max_angular_acceleration_degps2 = 300.0;
+    bool bound_degenerate_slide = true;
     double max_speed_mps = 40.0;
     double start_search_radius_m = 2.0;
     double gap_acceleration_mps2 = 2.0;

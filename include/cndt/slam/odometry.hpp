@@ -215,6 +215,16 @@ struct OdometryOptions {
   /// pulling away among pedestrians can turn by degrees in one scan. Roll and pitch are not
   /// checked: the ground holds them, and a sparse scan's scatter in them is not a wrong minimum.
   double max_angular_acceleration = 300.0 * std::numbers::pi / 180.0;
+  /// A degenerate match (degenerate_conditioning) has no evidence along the directions its
+  /// Hessian leaves free: where it ends up along them is the solver's slide (the rings of a
+  /// young reference, a mover), not the motion. Along each such direction its position is kept
+  /// within max_acceleration dt^2 of the prediction (the prior's centre), the distance the
+  /// acceleration check allows; within it the match stands. Flagged kOdomSlideBounded. Needs
+  /// max_acceleration > 0, and a prediction clean matches measured: only once three matches in
+  /// a row were clean, and not from a gap or a clock jump until three are again (a start whose
+  /// every match is degenerate by the test, as on the ground seen from a sensor pitched 30 deg
+  /// down, can be right while its prediction lags).
+  bool bound_degenerate_slide = true;
   /// Weight of the pull of each match towards the constant-velocity prediction's position,
   /// relative to the scene's strongest constraint on it (ndt::PositionPrior; 0 = none). Applied
   /// when the prediction is trusted (the last scan matched cleanly). At the default, equal to
@@ -265,6 +275,9 @@ enum OdometryFlags : std::uint32_t {
   /// give Cm directions in 3-D (a sparse scan: 1200 rpm, heavy packet loss), while the match
   /// itself is well posed: Cm reported as 0, and the pose not flagged degenerate.
   kOdomCmUnmeasured = 1u << 11,
+  /// Degenerate, and moved along a direction its Hessian leaves free back to within
+  /// max_acceleration dt^2 of the prediction (bound_degenerate_slide).
+  kOdomSlideBounded = 1u << 12,
 };
 
 struct OdometryResult {
@@ -388,6 +401,9 @@ class ConsensusOdometry {
   [[nodiscard]] bool degenerate(double conditioning) const {
     return !(conditioning >= options_.degenerate_conditioning);
   }
+  // bound_degenerate_slide: moves `pose` along the directions the last match's Hessian leaves
+  // free to within `room` of the prior's centre; whether it moved.
+  bool bound_slide(double room, Eigen::Isometry3d& pose) const;
   // Whether b lies farther than fine_reach from a (a turn counted at the scan's RMS range).
   [[nodiscard]] bool beyond_reach(const core::Pose6& a, const core::Pose6& b) const;
   ndt::ConsensusMeasure consensus_at(const core::Pose6& x, std::vector<double>& cv);
@@ -461,10 +477,12 @@ class ConsensusOdometry {
   double extrapolate_ = 0.0;
   std::size_t clean_run_ = 0;        // matches since the last one flagged degenerate
   bool degenerate_latched_ = false;  // the last scan matched was flagged degenerate
+  bool slide_bound_armed_ = false;   // see kSlideBoundCleanRun (odometry.cpp)
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;
   ndt::PositionPrior prior_;  // the matches' pull towards this scan's prediction
+  ndt::Matrix6d match_hessian_ = ndt::Matrix6d::Zero();  // of the last match (match())
   // guess_jitter_seed's generator: the next counter value for core::mix64.
   std::uint64_t jitter_state_ = 0;
   std::chrono::nanoseconds prev_stamp_{0};
