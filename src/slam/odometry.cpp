@@ -549,7 +549,7 @@ bool ConsensusOdometry::bound_slide(double room, Eigen::Isometry3d& pose) const 
   if (!h.allFinite()) return false;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(h);
   const double largest = es.eigenvalues()(2);
-  const Eigen::Vector3d off = pose.translation() - core::to_isometry(prior_.center).translation();
+  const Eigen::Vector3d off = pose.translation() - prior_.center.head<3>();
   Eigen::Vector3d shift = Eigen::Vector3d::Zero();
   for (int i = 0; i < 2; ++i) {  // the largest eigenvalue's direction is the best fixed
     if (es.eigenvalues()(i) >= options_.degenerate_conditioning * largest) continue;

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -58,31 +59,44 @@ TEST(ScoreThreads, EveryTaskRunsOnceAndIsDoneWhenRunReturns) {
   }
 }
 
+// The odometry options make_setup gives for a config file's text (nullptr: the built-in
+// defaults); nullopt, with the reason reported, when the text does not load.
+std::optional<slam::OdometryOptions> odometry_options(const char* toml) {
+  config::Config loaded;
+  if (toml != nullptr) {
+    auto c = config::parse_config(toml, "odometry.toml");
+    EXPECT_TRUE(c) << c.error().message;
+    if (!c) return std::nullopt;
+    loaded = c.value();
+  }
+  auto set = make_setup(loaded);
+  EXPECT_TRUE(set) << set.error().message;
+  if (!set) return std::nullopt;
+  return set.value().pipeline.odometry;
+}
+
 // The configuration's local-map keys and level_frame reach the odometry, and left out they are
 // the odometry's own defaults.
 TEST(Setup, LocalMapKeysReachTheOdometry) {
-  auto defaults = make_setup(config::Config{});
-  ASSERT_TRUE(defaults) << defaults.error().message;
+  const auto defaults = odometry_options(nullptr);
+  ASSERT_TRUE(defaults);
   const slam::OdometryOptions library;
-  const slam::OdometryOptions& d = defaults.value().pipeline.odometry;
+  const slam::OdometryOptions& d = *defaults;
   EXPECT_EQ(d.local_map_scans, library.local_map_scans);
   EXPECT_EQ(d.local_map_points, library.local_map_points);
   EXPECT_EQ(d.map_min_translation, library.map_min_translation);
   EXPECT_EQ(d.map_admit_distance, library.map_admit_distance);
   EXPECT_EQ(d.level_frame, library.level_frame);
-  auto c = config::parse_config(R"(
+  const auto set = odometry_options(R"(
 [odometry]
 level_frame = false
 local_map_scans = 30
 local_map_points = 900000
 map_min_translation_m = 2.0
 map_admit_distance_m = 0.7
-)",
-                                "local_map.toml");
-  ASSERT_TRUE(c) << c.error().message;
-  auto set = make_setup(c.value());
-  ASSERT_TRUE(set) << set.error().message;
-  const slam::OdometryOptions& o = set.value().pipeline.odometry;
+)");
+  ASSERT_TRUE(set);
+  const slam::OdometryOptions& o = *set;
   EXPECT_EQ(o.local_map_scans, 30u);
   EXPECT_EQ(o.local_map_points, 900'000u);
   EXPECT_EQ(o.map_min_translation, 2.0);
@@ -93,26 +107,23 @@ map_admit_distance_m = 0.7
 // The start and gap search keys reach the odometry (the turn in degrees), and left out they are
 // the odometry's own defaults.
 TEST(Setup, SearchKeysReachTheOdometry) {
-  auto defaults = make_setup(config::Config{});
-  ASSERT_TRUE(defaults) << defaults.error().message;
+  const auto defaults = odometry_options(nullptr);
+  ASSERT_TRUE(defaults);
   const slam::OdometryOptions library;
-  const slam::OdometryOptions& d = defaults.value().pipeline.odometry;
+  const slam::OdometryOptions& d = *defaults;
   EXPECT_EQ(d.start_search_radius, library.start_search_radius);
   EXPECT_EQ(d.gap_acceleration, library.gap_acceleration);
   EXPECT_EQ(d.gap_search_radius, library.gap_search_radius);
   EXPECT_DOUBLE_EQ(d.gap_turn_hypothesis_rad, library.gap_turn_hypothesis_rad);
-  auto c = config::parse_config(R"(
+  const auto set = odometry_options(R"(
 [odometry]
 start_search_radius_m = 3.0
 gap_acceleration_mps2 = 4.5
 gap_search_radius_m = 20.0
 gap_turn_hypothesis_deg = -1
-)",
-                                "search.toml");
-  ASSERT_TRUE(c) << c.error().message;
-  auto set = make_setup(c.value());
-  ASSERT_TRUE(set) << set.error().message;
-  const slam::OdometryOptions& o = set.value().pipeline.odometry;
+)");
+  ASSERT_TRUE(set);
+  const slam::OdometryOptions& o = *set;
   EXPECT_EQ(o.start_search_radius, 3.0);
   EXPECT_EQ(o.gap_acceleration, 4.5);
   EXPECT_EQ(o.gap_search_radius, 20.0);
