@@ -297,7 +297,8 @@ const std::vector<Field>& fields() {
        "start of a drive too, whose first matches are on the paper's Gaussians); a match "
        "degenerate with patches is matched again without them (flag 1024) and they stay off "
        "until then: where the rest of the scene leaves the position free, the texture the rings "
-       "give the ground is what holds it (0 = patches regardless; docs/odometry.md, \"Level "
+       "give the ground is what holds it. This count and patches_after_scans are checked when "
+       "the local map takes a scan (0 = patches regardless; docs/odometry.md, \"Level "
        "patches\").",
        "scans", 0, 100000},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),

@@ -118,9 +118,10 @@ struct OdometryOptions {
   /// Reference voxels in a planar neighbourhood are matched as pieces of the plane
   /// (ndt::VoxelGridOptions::surface_patches; docs/odometry.md, "Surface patches"). On by
   /// default for level planes only, once the local map holds patches_after_scans scans and
-  /// patches_clean_scans matches in a row were not degenerate (from the fourth scan of a drive
-  /// at speed; patch_max_tilt_deg; docs/odometry.md, "Level patches"): they take out most of the
-  /// tilt the ground's ring arcs give. false: the paper's Gaussians (eq 4) everywhere.
+  /// patches_clean_scans matches in a row were not degenerate, checked when the local map takes
+  /// a scan (from the fourth scan of a drive at speed; patch_max_tilt_deg; docs/odometry.md,
+  /// "Level patches"): they take out most of the tilt the ground's ring arcs give. false: the
+  /// paper's Gaussians (eq 4) everywhere.
   bool surface_patches = true;
   /// Surface patches only once the local map holds this many scans: a plane judged from the sums
   /// of one or two sparse scans (900-1200 rpm) may be a few unrelated ring arcs; a campus drive
