@@ -545,7 +545,7 @@ bool ConsensusOdometry::short_of_pyramid(const core::Pose6& pose,
 }
 
 bool ConsensusOdometry::bound_slide(double room, Eigen::Isometry3d& pose) const {
-  const Eigen::Matrix3d h = match_hessian_.topLeftCorner<3, 3>();
+  const Eigen::Matrix3d& h = match_translation_hessian_;
   if (!h.allFinite()) return false;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(h);
   const double largest = es.eigenvalues()(2);
@@ -624,7 +624,7 @@ bool ConsensusOdometry::match(const core::Pose6& x0, OdometryResult& res,
   }
   res.fine_iterations += r.iterations;
   res.conditioning = translation_conditioning(r.hessian);  // the last match's counts
-  match_hessian_ = r.hessian;
+  match_translation_hessian_ = r.hessian.topLeftCorner<3, 3>();
   res.points = r.matched;
   res.pose = core::to_isometry(r.pose);
   return r.converged;

@@ -483,7 +483,8 @@ class ConsensusOdometry {
   // max_acceleration.
   bool prediction_trusted_ = false;
   ndt::PositionPrior prior_;  // the matches' pull towards this scan's prediction
-  ndt::Matrix6d match_hessian_ = ndt::Matrix6d::Zero();  // of the last match (match())
+  // The translation block of the last match's Hessian (match()): bound_slide reads it.
+  Eigen::Matrix3d match_translation_hessian_ = Eigen::Matrix3d::Zero();
   // guess_jitter_seed's generator: the next counter value for core::mix64.
   std::uint64_t jitter_state_ = 0;
   std::chrono::nanoseconds prev_stamp_{0};
