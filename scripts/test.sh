@@ -3,7 +3,8 @@
 # short replay under valgrind memcheck, the same tests under AddressSanitizer +
 # UndefinedBehaviorSanitizer, the threaded runtime under ThreadSanitizer, and
 # every libFuzzer target for a bounded time.
-# Tests read real captures from ../shared/data when it exists (they skip, saying so, otherwise).
+# Tests read real captures from ../shared/data when it exists, or beside the checkout this one was
+# cloned from (they skip, saying so, otherwise).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -24,6 +25,26 @@ if ((free_mb + built_mb < need_mb)); then
     "cache; $free_mb MB are free on $(df -P . | awk 'NR == 2 {print $6}') and $built_mb MB of" \
     "them are built already: free $((need_mb - free_mb - built_mb)) MB more first" >&2
   exit 1
+fi
+
+# The real captures: $CNDT_SHARED_DATA, else ../shared/data beside this checkout, else beside
+# the checkout this one was cloned from (a clean clone made elsewhere to test a change).
+if [[ -z ${CNDT_SHARED_DATA:-} ]]; then
+  origin=$(git remote get-url origin 2>/dev/null || true)
+  origin=${origin#file://}
+  for dir in "$root/../shared/data" "${origin:+$origin/../shared/data}"; do
+    if [[ -n $dir && -d $dir ]]; then
+      CNDT_SHARED_DATA=$(cd "$dir" && pwd)
+      export CNDT_SHARED_DATA
+      break
+    fi
+  done
+fi
+if [[ -n ${CNDT_SHARED_DATA:-} ]]; then
+  echo "cndt: real captures from $CNDT_SHARED_DATA"
+else
+  echo "cndt: no folder of real captures found (../shared/data or \$CNDT_SHARED_DATA):" \
+    "the tests that read them will skip"
 fi
 
 echo "== build and test (RelWithDebInfo)"
