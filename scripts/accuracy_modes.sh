@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# Consensus against naive over drawn drives, each replayed under K jitter seeds in both modes.
+# A single replay of a drive moves by a factor of two or more under rounding-level changes on
+# hard starts (docs/accuracy.md, "Random settings", "Consensus against naive"), so one replay per
+# drive and mode is not enough to compare them. This makes (or reuses) the captures of
+# `accuracy_random.sh OUT --draw SEED:COUNT`, replays each with --jitter-seed 1..K in each mode,
+# and prints per drive the median ATE of the K replays in each mode and their ratio, then the
+# geometric mean of the ratio consensus / naive over all drives, over those with 8-12 movers and
+# over those started from rest, with how many drives consensus is lower on.
+# Usage: scripts/accuracy_modes.sh [BUILD_DIR] [OUT_DIR] --draw SEED:COUNT [K]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build=${1:-$root/build/release}
+out=${2:-$root/out/accuracy-modes}
+shift $(($# < 2 ? $# : 2))
+if [[ ${1:-} != --draw || ! ${2:-} =~ ^[0-9]+:[0-9]+$ ]]; then
+  echo "accuracy_modes.sh: usage: accuracy_modes.sh BUILD_DIR OUT_DIR --draw SEED:COUNT [K] (got '$*')" >&2
+  exit 2
+fi
+draw=$2
+k=${3:-3}
+[[ $k =~ ^[1-9][0-9]*$ ]] || { echo "accuracy_modes.sh: K must be a positive number of seeds (got '$k')" >&2; exit 2; }
+cndt=$build/src/apps/cndt
+# The captures and their settings (one consensus replay each, which this script does not read).
+mkdir -p "$out"
+table=$out/draw.md
+bash "$root/scripts/accuracy_random.sh" "$build" "$out" --draw "$draw" >"$table"
+replay() {  # DRIVE_DIR MODE SEED
+  local dir=$1 run=$1/jitter-$2-$3
+  "$cndt" replay "$dir/capture.pcap" --out "$run" --mode "$2" --jitter-seed "$3" >/dev/null 2>&1
+  "$cndt" eval --gt "$dir/groundtruth.tum" --est "$run/trajectory.tum" >"$run/eval.json"
+}
+export -f replay
+export cndt
+# shellcheck disable=SC2016 # expanded by the inner shell
+grep '^| d[0-9]' "$table" | cut -d'|' -f2 | tr -d ' ' |
+  while read -r name; do
+    for mode in consensus naive; do
+      for seed in $(seq 1 "$k"); do echo "$out/$name $mode $seed"; done
+    done
+  done | xargs -P 2 -L 1 bash -c 'replay "$0" "$1" "$2"'
+python3 - "$out" "$k" "$table" <<'PY'
+import json, math, re, statistics, sys
+out, k, table = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+drives = re.findall(r"^\| (d\d+-\d+) \| `([^`]*)`", open(table).read(), re.M)
+def median_ate(name, mode):
+    return statistics.median(
+        json.load(open(f"{out}/{name}/jitter-{mode}-{s}/eval.json"))["ate_rmse_m"]
+        for s in range(1, k + 1))
+print(f"| drive | settings | consensus ATE m (median of {k}) | naive | consensus / naive |")
+print("|---|---|---|---|---|")
+rows = []
+for name, args in drives:
+    c, n = median_ate(name, "consensus"), median_ate(name, "naive")
+    movers = int(re.search(r"--movers (\d+)", args).group(1))
+    rows.append((c, n, movers, "--start-still" in args))
+    print(f"| {name} | `{args}` | {c:.4f} | {n:.4f} | {c / n:.2f} |")
+print()
+for label, subset in (("all", rows), ("8-12 movers", [r for r in rows if r[2] >= 8]),
+                      ("started from rest", [r for r in rows if r[3]])):
+    if not subset:
+        continue
+    g = math.exp(statistics.mean(math.log(c / n) for c, n, _, _ in subset))
+    lower = sum(c < n for c, n, _, _ in subset)
+    print(f"{label}: {len(subset)} drives, geometric mean of consensus / naive {g:.3f},"
+          f" consensus lower on {lower}")
+PY
