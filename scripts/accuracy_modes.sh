@@ -2,11 +2,12 @@
 # Consensus against naive over drawn drives, each replayed under K jitter seeds in both modes.
 # A single replay of a drive moves by a factor of two or more under rounding-level changes on
 # hard starts (docs/accuracy.md, "Random settings", "Consensus against naive"), so one replay per
-# drive and mode is not enough to compare them. This makes (or reuses) the captures of
-# `accuracy_random.sh OUT --draw SEED:COUNT`, replays each with --jitter-seed 1..K in each mode,
-# and prints per drive the median ATE of the K replays in each mode and their ratio, then the
-# geometric mean of the ratio consensus / naive over all drives, over those with 8-12 movers and
-# over those started from rest, with how many drives consensus is lower on.
+# drive and mode is not enough to compare them. This takes the drives of `accuracy_random.sh
+# --draw SEED:COUNT` (its --list), makes their captures where OUT_DIR lacks them (the folders of
+# an `accuracy_random.sh` run into the same OUT_DIR are reused), replays each with --jitter-seed
+# 1..K in each mode, and prints per drive the median ATE of the K replays in each mode and their
+# ratio, then the geometric mean of the ratio consensus / naive over all drives, over those with
+# 8-12 movers and over those started from rest, with how many drives consensus is lower on.
 # Usage: scripts/accuracy_modes.sh [BUILD_DIR] [OUT_DIR] --draw SEED:COUNT [K]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -21,28 +22,35 @@ draw=$2
 k=${3:-3}
 [[ $k =~ ^[1-9][0-9]*$ ]] || { echo "accuracy_modes.sh: K must be a positive number of seeds (got '$k')" >&2; exit 2; }
 cndt=$build/src/apps/cndt
-# The captures and their settings (one consensus replay each, which this script does not read).
+# The draw's drives (name and `cndt sim` arguments) and their captures, made where missing.
 mkdir -p "$out"
-table=$out/draw.md
-bash "$root/scripts/accuracy_random.sh" "$build" "$out" --draw "$draw" >"$table"
+list=$out/drives.txt
+bash "$root/scripts/accuracy_random.sh" "$build" "$out" --draw "$draw" --list >"$list"
+capture() {  # NAME SIM_ARGS...
+  local dir=$out/$1
+  shift
+  [[ -f $dir/capture.pcap ]] || "$cndt" sim "$@" --out "$dir" >/dev/null 2>&1
+}
 replay() {  # DRIVE_DIR MODE SEED
   local dir=$1 run=$1/jitter-$2-$3
   "$cndt" replay "$dir/capture.pcap" --out "$run" --mode "$2" --jitter-seed "$3" >/dev/null 2>&1
   "$cndt" eval --gt "$dir/groundtruth.tum" --est "$run/trajectory.tum" >"$run/eval.json"
 }
-export -f replay
-export cndt
+export -f capture replay
+export cndt out
 # shellcheck disable=SC2016 # expanded by the inner shell
-grep '^| d[0-9]' "$table" | cut -d'|' -f2 | tr -d ' ' |
+xargs -P 2 -L 1 bash -c 'capture "$0" "$@"' <"$list"
+# shellcheck disable=SC2016 # expanded by the inner shell
+cut -d' ' -f1 "$list" |
   while read -r name; do
     for mode in consensus naive; do
       for seed in $(seq 1 "$k"); do echo "$out/$name $mode $seed"; done
     done
   done | xargs -P 2 -L 1 bash -c 'replay "$0" "$1" "$2"'
-python3 - "$out" "$k" "$table" <<'PY'
+python3 - "$out" "$k" "$list" <<'PY'
 import json, math, re, statistics, sys
-out, k, table = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-drives = re.findall(r"^\| (d\d+-\d+) \| `([^`]*)`", open(table).read(), re.M)
+out, k, listing = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+drives = [line.rstrip("\n").split(" ", 1) for line in open(listing) if line.strip()]
 def median_ate(name, mode):
     return statistics.median(
         json.load(open(f"{out}/{name}/jitter-{mode}-{s}/eval.json"))["ate_rmse_m"]

@@ -8,8 +8,9 @@
 # sensor's stamps, which `cndt eval` cannot pair across a step back; docs/odometry.md, "Clock
 # jumps".) Replayed in the default mode (other arguments go to `cndt replay`, e.g. --mode naive
 # or --config FILE) and scored by `cndt eval`: one row per drive (ATE, RTE, RRE, RPE, the height
-# error at the end), the worst of each and the median ATE.
-# Usage: scripts/accuracy_random.sh [BUILD_DIR] [OUT_DIR] [--draw SEED:COUNT] [REPLAY_ARGS...]
+# error at the end), the worst of each and the median ATE. With --list, only prints the drives
+# (name and `cndt sim` arguments, one a line) and runs nothing.
+# Usage: scripts/accuracy_random.sh [BUILD_DIR] [OUT_DIR] [--draw SEED:COUNT] [--list] [REPLAY_ARGS...]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$root/build/release}
@@ -21,9 +22,13 @@ if [[ ${1:-} == --draw ]]; then
   draw=$2
   shift 2
 fi
+list=false
+if [[ ${1:-} == --list ]]; then
+  list=true
+  shift
+fi
 replay_args=("$@")
 cndt=$build/src/apps/cndt
-mkdir -p "$out"
 drives=(
   "r00 --scene campus --seed 100 --duration 20 --movers 8 --height 2.09 --noise 0.007 --drop-rate 0.24"
   "r01 --scene loop --seed 101 --duration 20 --movers 12 --noise 0.006 --drop-rate 0.12 --mount 2.9 5.9 70.0 --start-still 1.8"
@@ -78,6 +83,11 @@ for i in range(count):
 PY
   )
 fi
+if $list; then
+  printf '%s\n' "${drives[@]}"
+  exit 0
+fi
+mkdir -p "$out"
 run() {  # NAME SIM_ARGS...
   local dir=$out/$1
   shift
