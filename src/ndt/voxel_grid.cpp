@@ -135,7 +135,8 @@ void VoxelGrid::link_new(std::size_t index) noexcept {
   }
 }
 
-void VoxelGrid::mark_dirty(Voxel& v, std::size_t index) noexcept {
+void VoxelGrid::mark_dirty(Voxel& v, std::size_t index, bool own) noexcept {
+  if (own) v.changed = true;
   if (v.dirty) return;
   v.dirty = true;
   dirty_.push_back(static_cast<std::uint32_t>(index));  // at most one entry per voxel
@@ -168,7 +169,7 @@ bool VoxelGrid::restore(const VoxelKey& k, std::uint32_t count, const Eigen::Vec
   v.consensus = consensus;
   ++version_;
   link_new(voxels_.size() - 1);
-  mark_dirty(v, voxels_.size() - 1);
+  mark_dirty(v, voxels_.size() - 1, true);
   return true;
 }
 
@@ -197,7 +198,7 @@ Voxel* VoxelGrid::add_point(const Eigen::Vector3d& p) noexcept {
   ++v.count;                                   // eq 3
   v.sum += q;                                  // eq 1
   v.sum_outer.noalias() += q * q.transpose();  // eq 2
-  mark_dirty(v, index);
+  mark_dirty(v, index, true);
   return &v;
 }
 
@@ -216,7 +217,7 @@ bool VoxelGrid::remove(const Eigen::Vector3d& p) noexcept {
     v.sum -= q;
     v.sum_outer.noalias() -= q * q.transpose();
   }
-  mark_dirty(v, static_cast<std::size_t>(i));
+  mark_dirty(v, static_cast<std::size_t>(i), true);
   return true;
 }
 
@@ -239,32 +240,54 @@ bool VoxelGrid::neighbourhood_plane(std::size_t index, Eigen::Vector3d& normal) 
   const Eigen::Vector3d mu = s1 / n;
   Eigen::Matrix3d cov = s2 / n - mu * mu.transpose();
   cov = 0.5 * (cov + cov.transpose());
+  // A plane is thin (e0 < 0.02 e1 for the eigenvalues e0 <= e1 <= e2), wide (e1 at least half
+  // the spread of a surface filling one voxel) and level (its normal v0 within the tilt).
+  const double filled = options_.voxel_size * options_.voxel_size / 12.0;
+  // Most neighbourhoods fail on one of three bounds that need no eigenvalues, each taken with
+  // a margin of two over round-off. With the trace T, the sum of the principal 2 x 2 minors M
+  // (e0 e1 + e0 e2 + e1 e2 >= e1 e2) and the determinant D = e0 e1 e2, a plane has
+  // D / M <= e0 < 0.02 e1 <= 0.01 T; e1 <= M / e2 <= 3 M / T; and cov_zz = sum e_i v_i,z^2 <=
+  // e0 + e2 (1 - v0,z^2) <= (0.01 + 1 - z^2) T for the least |v0,z| = z allowed.
+  const double trace = cov.trace();
+  const double minors = cov(0, 0) * cov(1, 1) - cov(0, 1) * cov(0, 1) + cov(0, 0) * cov(2, 2) -
+                        cov(0, 2) * cov(0, 2) + cov(1, 1) * cov(2, 2) - cov(1, 2) * cov(1, 2);
+  if (cov.determinant() > 0.02 * trace * minors) return false;  // not thin
+  if (3.0 * minors < 0.25 * filled * trace) return false;       // a line or a point
+  const double z = patch_min_normal_z_;
+  if (z > 0.0 && cov(2, 2) > (0.02 + 2.0 * (1.0 - z * z)) * trace) return false;  // steep
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
   es.computeDirect(cov);
   const Eigen::Vector3d ev = es.eigenvalues();
-  // Thin (under 2 % of the middle spread) and wide (the middle spread at least half that of a
-  // surface filling one voxel): a plane, not a line, an edge or a blob.
-  const double filled = options_.voxel_size * options_.voxel_size / 12.0;
   if (!(ev(0) < 0.02 * ev(1) && ev(1) > 0.5 * filled)) return false;
   normal = es.eigenvectors().col(0);
-  return true;
+  return std::abs(normal.z()) >= patch_min_normal_z_;
 }
 
 void VoxelGrid::derive(std::size_t index) noexcept {
   Voxel& v = voxels_[index];
   Gaussian& g = gaussians_[index];
+  const bool was_patch = v.patch;
+  v.patch = false;
+  if (v.count < options_.min_points) {
+    v.has_gaussian = false;
+    g.valid = 0;
+    return;
+  }
+  Eigen::Vector3d normal;
+  const bool patch = options_.surface_patches && neighbourhood_plane(index, normal);
+  // Derived again only because a neighbour changed, and neither a patch before nor now: its
+  // Gaussian, from its own sums alone, is the one it has.
+  if (!patch && !was_patch && !v.changed) return;
   v.has_gaussian = false;
   g.valid = 0;
-  if (v.count < options_.min_points) return;
   const double n = v.count;
   const Eigen::Vector3d m = v.sum / n;
   const Eigen::Vector3d mean = corner(v.key) + m;  // eq 4, mean
   const Eigen::Matrix3d cov = v.covariance();      // eq 4, covariance
   Eigen::Matrix3d A;
-  Eigen::Vector3d normal;
-  if (options_.surface_patches && neighbourhood_plane(index, normal) &&
-      std::abs(normal.z()) >= patch_min_normal_z_) {
+  if (patch) {
     A = surface_patch(cov, normal);
+    v.patch = true;
   } else {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
     es.computeDirect(cov);  // closed form for 3 x 3
@@ -311,7 +334,7 @@ void VoxelGrid::set_surface_patches(bool on) noexcept {
   if (on == options_.surface_patches) return;
   options_.surface_patches = on;
   for (std::size_t i = 0; i < voxels_.size(); ++i) {
-    if (voxels_[i].count > 0) mark_dirty(voxels_[i], i);
+    if (voxels_[i].count > 0) mark_dirty(voxels_[i], i, true);
   }
 }
 
@@ -320,12 +343,13 @@ void VoxelGrid::finalize() noexcept {
     // A voxel's Gaussian reads its neighbours' sums: theirs change with it.
     const std::size_t changed = dirty_.size();
     for (std::size_t d = 0; d < changed; ++d) {
-      for_each_around(dirty_[d], [&](std::size_t j) { mark_dirty(voxels_[j], j); });
+      for_each_around(dirty_[d], [&](std::size_t j) { mark_dirty(voxels_[j], j, false); });
     }
   }
-  for (std::uint32_t i : dirty_) {
-    voxels_[i].dirty = false;
+  for (const std::uint32_t i : dirty_) {
     derive(i);
+    voxels_[i].dirty = false;
+    voxels_[i].changed = false;
   }
   dirty_.clear();
 }

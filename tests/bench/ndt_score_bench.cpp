@@ -5,7 +5,8 @@
 // one thread and with the chunks shared with a helper thread (runtime::ScoreThreads, as cndtd runs
 // with [runtime] scoring_threads = 2; wall time). Then Cv's residual sums over the scan's
 // map_cell points at the same pose: accumulate_residuals against ndt::ResidualAccumulator on one
-// thread and two. Last, the odometry's two downsamplings of the scan's returns.
+// thread and two. Then the odometry's two downsamplings of the scan's returns, and last the
+// local map's update when a scan enters and leaves it.
 // Run: build/release/tests/bench/ndt_score_bench
 #include <benchmark/benchmark.h>
 
@@ -148,5 +149,33 @@ void Downsample(benchmark::State& state) {
   state.counters["scan_cells"] = static_cast<double>(scan_points.size());
 }
 BENCHMARK(Downsample)->UseRealTime()->Unit(benchmark::kMicrosecond);
+
+// The local map's update when a scan enters it: a street scan's map_cell points added to a copy
+// of the odometry's reference grid (surface patches on, as the odometry has them by then) and
+// the Gaussians derived again (finalize), then the same points removed and derived again (as
+// when the scan leaves). The points are those of the fixture's last scan, 1 m further along
+// the street (where the next scan to enter would lie at this speed), so they touch the voxels
+// a new scan does; after the first iteration the voxels they create are there, emptied.
+void GridUpdate(benchmark::State& state) {
+  const Fixture& f = fixture();
+  cndt::ndt::VoxelGrid grid = f.odometry.reference_grid();
+  Eigen::Isometry3d at = cndt::core::to_isometry(f.pose);
+  at.translation() += at.linear() * Eigen::Vector3d(1.0, 0.0, 0.0);
+  std::vector<Eigen::Vector3d> points;
+  for (const Eigen::Vector3d& p : f.odometry.scan_points()) {
+    points.push_back(f.odometry.level_rotation() * (at * p));
+  }
+  for (auto _ : state) {
+    for (const Eigen::Vector3d& p : points) grid.add(p);
+    grid.finalize();
+    for (const Eigen::Vector3d& p : points) grid.remove(p);
+    grid.finalize();
+    benchmark::DoNotOptimize(grid.gaussians().data());
+  }
+  state.counters["points"] = static_cast<double>(points.size());
+  state.counters["voxels"] = static_cast<double>(grid.size());
+  state.counters["patches"] = grid.options().surface_patches ? 1.0 : 0.0;
+}
+BENCHMARK(GridUpdate)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -27,7 +27,9 @@ struct Voxel {
   std::uint32_t count = 0;  ///< N_j
   /// Set by VoxelGrid::finalize(): N_j >= min_points (and not dropped as a ring arc).
   bool has_gaussian = false;
-  bool dirty = false;  ///< changed since the last finalize()
+  bool dirty = false;    ///< to derive again at the next finalize()
+  bool changed = false;  ///< its own sums changed since the last finalize()
+  bool patch = false;    ///< its Gaussian is a surface patch (VoxelGridOptions::surface_patches)
   /// Mean voxel consensus Cv of the points added with one (a map's voxels); 0 otherwise.
   float consensus = 0.0f;
   // Running sums, corner-relative: m_j = sum (p_i - c), S_j = sum (p_i - c)(p_i - c)^T.
@@ -188,10 +190,11 @@ class VoxelGrid {
   Voxel* add_point(const Eigen::Vector3d& p) noexcept;  // nullptr when full
   void rebuild_table() noexcept;
   [[nodiscard]] Eigen::Vector3d corner(const VoxelKey& k) const noexcept;
-  void mark_dirty(Voxel& v, std::size_t index) noexcept;
+  // Voxel `index` is derived again at the next finalize(); `own`: its own sums changed.
+  void mark_dirty(Voxel& v, std::size_t index, bool own) noexcept;
   void derive(std::size_t index) noexcept;  // gaussians_[index] from voxels_[index]'s sums
-  // surface_patches: whether the voxels around voxel `index` (with it) hold a plane, and its
-  // normal.
+  // surface_patches: whether the voxels around voxel `index` (with it) hold a plane tilted at
+  // most patch_max_tilt_deg, and its normal.
   bool neighbourhood_plane(std::size_t index, Eigen::Vector3d& normal) const noexcept;
   // surface_patches: the inverse covariance of a voxel with covariance `cov` in a plane.
   Eigen::Matrix3d surface_patch(const Eigen::Matrix3d& cov,

@@ -947,5 +947,62 @@ TEST(VoxelGrid, NeighbourListsGiveTheGaussiansOfLookups) {
   }
 }
 
+// finalize() derives again the voxels whose points changed and, with surface patches, their
+// neighbours (whose neighbourhood changed); a neighbour neither a patch before nor now keeps
+// its Gaussian. After every step of adding and removing, the Gaussians equal, bit for bit,
+// those of a grid given the same additions and removals and finalized once at the end, and
+// some voxels whose own points never changed became patches and stopped being ones.
+TEST(VoxelGrid, FinalizingAfterEachChangeEqualsFinalizingOnce) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 4.0), noise(-0.003, 0.003);
+  std::vector<Eigen::Vector3d> floor, pile;
+  for (int i = 0; i < 6000; ++i) floor.emplace_back(u(rng), u(rng), noise(rng));
+  for (int i = 0; i < 300; ++i) {  // a heap on the floor: the planes around it are lost
+    pile.emplace_back(1.6 + 0.8 * u(rng) / 4.0, 1.6 + 0.8 * u(rng) / 4.0, 0.05 + 0.1 * u(rng));
+  }
+  struct Step {
+    const std::vector<Eigen::Vector3d>* points;
+    bool add;
+  };
+  const std::vector<Step> steps{{&floor, true}, {&pile, true}, {&pile, false}, {&pile, true}};
+  VoxelGrid stepwise({0.5, 10'000, 5, 0.001, false, true, 25.0});
+  std::vector<bool> was_patch;
+  int became = 0, stopped = 0;
+  for (std::size_t n = 0; n < steps.size(); ++n) {
+    std::vector<std::uint32_t> counts;
+    for (const Voxel& v : stepwise.voxels()) counts.push_back(v.count);
+    for (const auto& p : *steps[n].points) {
+      if (steps[n].add) {
+        ASSERT_TRUE(stepwise.add(p));
+      } else {
+        ASSERT_TRUE(stepwise.remove(p));
+      }
+    }
+    stepwise.finalize();
+    VoxelGrid once({0.5, 10'000, 5, 0.001, false, true, 25.0});
+    for (std::size_t k = 0; k <= n; ++k) {
+      for (const auto& p : *steps[k].points) steps[k].add ? once.add(p) : once.remove(p);
+    }
+    once.finalize();
+    ASSERT_EQ(once.size(), stepwise.size());
+    for (std::size_t i = 0; i < once.size(); ++i) {
+      const Gaussian& a = once.gaussians()[i];
+      const Gaussian& b = stepwise.gaussians()[i];
+      ASSERT_EQ(once.voxels()[i].key, stepwise.voxels()[i].key);
+      ASSERT_EQ(a.valid, b.valid) << "step " << n << ", voxel " << i;
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(a.mean[k], b.mean[k]);
+      for (int k = 0; k < 6; ++k) EXPECT_EQ(a.inv_cov[k], b.inv_cov[k]);
+      const Voxel& v = stepwise.voxels()[i];
+      if (i < counts.size() && v.count == counts[i] && v.patch != was_patch[i]) {
+        ++(v.patch ? became : stopped);
+      }
+    }
+    was_patch.clear();
+    for (const Voxel& v : stepwise.voxels()) was_patch.push_back(v.patch);
+  }
+  EXPECT_GT(stopped, 0);  // the heap's neighbours, their own points untouched
+  EXPECT_GT(became, 0);   // and the same when it went
+}
+
 }  // namespace
 }  // namespace cndt::ndt
