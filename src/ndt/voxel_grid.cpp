@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "cndt/core/resident.hpp"
+#include "cndt/ndt/ndt_score.hpp"
 
 namespace cndt::ndt {
 namespace {
@@ -338,7 +339,20 @@ void VoxelGrid::set_surface_patches(bool on) noexcept {
   }
 }
 
-void VoxelGrid::finalize() noexcept {
+void VoxelGrid::derive_chunk(void* context, std::size_t chunk) {
+  // Each voxel's derivation writes only that voxel's flags and Gaussian and reads its
+  // neighbours' sums, which no derivation writes: the chunks are independent.
+  auto& grid = *static_cast<VoxelGrid*>(context);
+  const ChunkRange r = chunk_range(grid.dirty_.size(), chunk);
+  for (std::size_t d = r.begin; d < r.end; ++d) {
+    const std::uint32_t i = grid.dirty_[d];
+    grid.derive(i);
+    grid.voxels_[i].dirty = false;
+    grid.voxels_[i].changed = false;
+  }
+}
+
+void VoxelGrid::finalize(TaskRunner* runner) noexcept {
   if (options_.surface_patches) {
     // A voxel's Gaussian reads its neighbours' sums: theirs change with it.
     const std::size_t changed = dirty_.size();
@@ -346,11 +360,7 @@ void VoxelGrid::finalize() noexcept {
       for_each_around(dirty_[d], [&](std::size_t j) { mark_dirty(voxels_[j], j, false); });
     }
   }
-  for (const std::uint32_t i : dirty_) {
-    derive(i);
-    voxels_[i].dirty = false;
-    voxels_[i].changed = false;
-  }
+  run_chunks(runner, dirty_.size(), &VoxelGrid::derive_chunk, this);
   dirty_.clear();
 }
 

@@ -286,49 +286,63 @@ core::Pose6 ConsensusOdometry::coarse_to_fine(const core::Pose6& x0) {
 }
 
 namespace {
-// Runs op(grid, point) over every point and grid in order, with the table slot and the voxel
+// Adds `points` to (or removes them from) grid g in order, with the table slot and the voxel
 // each point will touch fetched into the cache 16 and 8 points before (the grids are far larger
 // than the caches, and their voxels are touched in random order).
-template <class Op>
-void for_each_in_grids(ndt::VoxelGrid& grid, std::vector<ndt::VoxelGrid>& pyramid,
-                       std::span<const Eigen::Vector3d> points, Op op) {
+void change_grid(ndt::VoxelGrid& g, std::span<const Eigen::Vector3d> points, bool add) {
   constexpr std::size_t kSlotAhead = 16, kVoxelAhead = 8;
-  auto hint = [&](const ndt::VoxelGrid& g, std::size_t i) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
     if (i + kSlotAhead < points.size()) g.prefetch_slot(points[i + kSlotAhead]);
     if (i + kVoxelAhead < points.size()) g.prefetch_voxel(points[i + kVoxelAhead]);
-  };
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    hint(grid, i);
-    op(grid, points[i]);
-    for (ndt::VoxelGrid& g : pyramid) {
-      hint(g, i);
-      op(g, points[i]);
+    if (add) {
+      g.add(points[i]);  // a full grid refuses points: compacted in finalize_grids()
+    } else {
+      g.remove(points[i]);
     }
+  }
+}
+
+struct GridsJob {
+  ndt::VoxelGrid* grid;
+  std::vector<ndt::VoxelGrid>* pyramid;
+  std::span<const Eigen::Vector3d> points;
+  bool add;
+};
+
+// Task 0 changes the fine grid, task 1 the pyramid's: each grid sees the points in the same
+// order whichever thread runs it.
+void change_grids_task(void* context, std::size_t task) {
+  const auto& job = *static_cast<const GridsJob*>(context);
+  if (task == 0) {
+    change_grid(*job.grid, job.points, job.add);
+  } else {
+    for (ndt::VoxelGrid& g : *job.pyramid) change_grid(g, job.points, job.add);
   }
 }
 }  // namespace
 
-void ConsensusOdometry::add_to_grids(std::span<const Eigen::Vector3d> points) {
-  for_each_in_grids(grid_, pyramid_, points,
-                    [](ndt::VoxelGrid& g, const Eigen::Vector3d& p) { g.add(p); });
-}
-
-void ConsensusOdometry::remove_from_grids(std::span<const Eigen::Vector3d> points) {
-  for_each_in_grids(grid_, pyramid_, points,
-                    [](ndt::VoxelGrid& g, const Eigen::Vector3d& p) { g.remove(p); });
+void ConsensusOdometry::change_grids(std::span<const Eigen::Vector3d> points, bool add) {
+  GridsJob job{&grid_, &pyramid_, points, add};
+  if (ndt::TaskRunner* runner = lookup_cache_.runner(); runner != nullptr) {
+    runner->run(2, &change_grids_task, &job);
+  } else {
+    change_grids_task(&job, 0);
+    change_grids_task(&job, 1);
+  }
 }
 
 void ConsensusOdometry::finalize_grids() {
-  auto finalize = [](ndt::VoxelGrid& g) {
-    g.finalize();
+  auto finalize = [this](ndt::VoxelGrid& g) {
+    g.finalize(lookup_cache_.runner());  // on the scorings' threads when there are any
     if (g.refused_points() > 0 || g.empty_voxels() * 4 > g.size()) g.compact();
   };
   // Surface patches once the local map holds enough scans to judge a plane by, and while the
   // matches are not flagged degenerate: where nothing else fixes the position, the texture the
   // rings give a level surface is what holds it.
-  if (options_.surface_patches)
+  if (options_.surface_patches) {
     grid_.set_surface_patches(in_grids_ >= options_.patches_after_scans &&
                               clean_run_ >= options_.patches_clean_scans);
+  }
   finalize(grid_);
   for (ndt::VoxelGrid& g : pyramid_) finalize(g);
 }
@@ -440,7 +454,7 @@ ndt::ConsensusMeasure ConsensusOdometry::consensus_at(const core::Pose6& x,
 
 void ConsensusOdometry::drop_oldest() {
   if (in_grids_ > 0) {
-    remove_from_grids(history_points(history_[history_head_]));
+    change_grids(history_points(history_[history_head_]), false);
     --in_grids_;
   }
   history_head_ = (history_head_ + 1) % history_.size();
@@ -480,7 +494,7 @@ void ConsensusOdometry::admit_pending(const Eigen::Isometry3d& next) {
     const bool far = d.translation().norm() >= options_.map_admit_distance ||
                      Eigen::AngleAxisd(d.linear()).angle() >= options_.map_min_rotation;
     if (!far && in_grids_ > 0) break;
-    add_to_grids(history_points(history_[k]));  // a full grid refuses points: compacted below
+    change_grids(history_points(history_[k]), true);
     ++in_grids_;
     added = true;
   }
@@ -499,7 +513,7 @@ void ConsensusOdometry::replace_newest(const std::vector<Eigen::Vector3d>& point
   // The newest scan leaves, and `points` take its place.
   const std::size_t newest = (history_head_ + history_size_ - 1) % history_.size();
   if (in_grids_ == history_size_) {
-    remove_from_grids(history_points(history_[newest]));
+    change_grids(history_points(history_[newest]), false);
     --in_grids_;
   }
   --history_size_;

@@ -13,6 +13,8 @@
 
 namespace cndt::ndt {
 
+class TaskRunner;  // ndt_score.hpp
+
 /// Integer voxel coordinates packed into one key.
 struct VoxelKey {
   std::int32_t x = 0, y = 0, z = 0;
@@ -121,8 +123,9 @@ class VoxelGrid {
   bool remove(const Eigen::Vector3d& p) noexcept;
   /// Derives mean and inverse covariance for every voxel changed since the last call that has
   /// enough points: mu = m / N; Sigma = S / N - mu mu^T (population covariance, divisor N), with
-  /// every eigenvalue below eigen_floor x the largest raised to that value.
-  void finalize() noexcept;
+  /// every eigenvalue below eigen_floor x the largest raised to that value. With a `runner`, the
+  /// voxels are derived in chunks on its threads (the same Gaussians to the bit).
+  void finalize(TaskRunner* runner = nullptr) noexcept;
   /// Turns surface patches on or off for the voxels held and those to come: every held voxel
   /// is derived again at the next finalize(). Allocates nothing.
   void set_surface_patches(bool on) noexcept;
@@ -193,6 +196,7 @@ class VoxelGrid {
   // Voxel `index` is derived again at the next finalize(); `own`: its own sums changed.
   void mark_dirty(Voxel& v, std::size_t index, bool own) noexcept;
   void derive(std::size_t index) noexcept;  // gaussians_[index] from voxels_[index]'s sums
+  static void derive_chunk(void* context, std::size_t chunk);  // finalize()'s task
   // surface_patches: whether the voxels around voxel `index` (with it) hold a plane tilted at
   // most patch_max_tilt_deg, and its normal.
   bool neighbourhood_plane(std::size_t index, Eigen::Vector3d& normal) const noexcept;

@@ -383,8 +383,9 @@ class ConsensusOdometry {
   // pose), and with its turn over the gap cut (gap_turn_hypothesis_rad).
   core::Pose6 search_gap_start(const core::Pose6& x0, const Eigen::Isometry3d& predicted,
                                const Eigen::Vector3d& heading, double along_radius);
-  void add_to_grids(std::span<const Eigen::Vector3d> points);
-  void remove_from_grids(std::span<const Eigen::Vector3d> points);
+  // Adds `points` to the fine and the pyramid's grids (or removes them), on the scorings'
+  // threads when there are any.
+  void change_grids(std::span<const Eigen::Vector3d> points, bool add);
   void finalize_grids();
   // Coarse match, Cv cut, fine match (or the naive single match) from x0; fills res. With
   // kOdomPyramidOnly in res.flags, a match on the finest pyramid grid instead. With

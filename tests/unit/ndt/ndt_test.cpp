@@ -950,13 +950,14 @@ TEST(VoxelGrid, NeighbourListsGiveTheGaussiansOfLookups) {
 // finalize() derives again the voxels whose points changed and, with surface patches, their
 // neighbours (whose neighbourhood changed); a neighbour neither a patch before nor now keeps
 // its Gaussian. After every step of adding and removing, the Gaussians equal, bit for bit,
-// those of a grid given the same additions and removals and finalized once at the end, and
-// some voxels whose own points never changed became patches and stopped being ones.
+// those of a grid given the same additions and removals and finalized once at the end (on a
+// runner that takes the chunks in reverse order), and some voxels whose own points never
+// changed became patches and stopped being ones.
 TEST(VoxelGrid, FinalizingAfterEachChangeEqualsFinalizingOnce) {
   std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> u(0.0, 4.0), noise(-0.003, 0.003);
+  std::uniform_real_distribution<double> u(0.0, 4.0), wide(0.0, 12.0), noise(-0.003, 0.003);
   std::vector<Eigen::Vector3d> floor, pile;
-  for (int i = 0; i < 6000; ++i) floor.emplace_back(u(rng), u(rng), noise(rng));
+  for (int i = 0; i < 20000; ++i) floor.emplace_back(wide(rng), wide(rng), noise(rng));
   for (int i = 0; i < 300; ++i) {  // a heap on the floor: the planes around it are lost
     pile.emplace_back(1.6 + 0.8 * u(rng) / 4.0, 1.6 + 0.8 * u(rng) / 4.0, 0.05 + 0.1 * u(rng));
   }
@@ -983,7 +984,9 @@ TEST(VoxelGrid, FinalizingAfterEachChangeEqualsFinalizingOnce) {
     for (std::size_t k = 0; k <= n; ++k) {
       for (const auto& p : *steps[k].points) steps[k].add ? once.add(p) : once.remove(p);
     }
-    once.finalize();
+    ReverseRunner runner;
+    once.finalize(&runner);
+    EXPECT_EQ(runner.tasks, kScoreChunks);  // enough voxels to share out
     ASSERT_EQ(once.size(), stepwise.size());
     for (std::size_t i = 0; i < once.size(); ++i) {
       const Gaussian& a = once.gaussians()[i];
