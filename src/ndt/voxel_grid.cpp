@@ -335,7 +335,9 @@ void VoxelGrid::set_surface_patches(bool on) noexcept {
   if (on == options_.surface_patches) return;
   options_.surface_patches = on;
   for (std::size_t i = 0; i < voxels_.size(); ++i) {
-    if (voxels_[i].count > 0) mark_dirty(voxels_[i], i, true);
+    // Their sums are as they were: a voxel that is a patch neither before nor after keeps its
+    // Gaussian (derive()).
+    if (voxels_[i].count > 0) mark_dirty(voxels_[i], i, false);
   }
 }
 

@@ -899,7 +899,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
     if (grid_.options().surface_patches && options_.patches_clean_scans > 0 &&
         degenerate(res.conditioning)) {
       grid_.set_surface_patches(false);
-      grid_.finalize();
+      grid_.finalize(lookup_cache_.runner());
       clean_run_ = 0;
       res.flags |= kOdomWithoutPatches;
       deskew_at(core::to_isometry(x0));

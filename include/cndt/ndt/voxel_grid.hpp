@@ -127,7 +127,8 @@ class VoxelGrid {
   /// voxels are derived in chunks on its threads (the same Gaussians to the bit).
   void finalize(TaskRunner* runner = nullptr) noexcept;
   /// Turns surface patches on or off for the voxels held and those to come: every held voxel
-  /// is derived again at the next finalize(). Allocates nothing.
+  /// is judged again at the next finalize() (those a patch neither before nor after keep their
+  /// Gaussians). Allocates nothing.
   void set_surface_patches(bool on) noexcept;
   void clear() noexcept;
   /// Drops the empty voxels left by remove() and rebuilds the table (indices change). Changes
