@@ -342,11 +342,13 @@ std::size_t expect_pairs_within_5cm(const std::vector<sim::ScanStart>& starts,
   return long_pairs;
 }
 
-// The default odometry over `scans` with those after `last` lost until `resume`, whose revolution
-// the data resumes in mid-turn: the poses given, and their stamps in `truth_t`.
+// The odometry (default options unless given) over `scans` with those after `last` lost until
+// `resume`, whose revolution the data resumes in mid-turn: the poses given, and their stamps in
+// `truth_t`.
 std::vector<TimedPose> odometry_across_gap(const std::vector<core::Scan>& scans, std::size_t last,
-                                           std::size_t resume, std::vector<double>& truth_t) {
-  ConsensusOdometry odometry({});
+                                           std::size_t resume, std::vector<double>& truth_t,
+                                           const OdometryOptions& options = {}) {
+  ConsensusOdometry odometry(options);
   std::vector<TimedPose> est;
   for (std::size_t i = 0; i < scans.size(); ++i) {
     if (i > last && i < resume) continue;
@@ -378,6 +380,22 @@ TEST(Odometry, ResumesAfterAGapInTheData) {
   EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 1u);
   EXPECT_GT((starts[kResume + 1].pose.translation() - starts[kLast].pose.translation()).norm(),
             10.0);  // the gap is long enough to matter
+}
+
+// The same gap with the scans deskewed to mid-revolution: the deskew's period spans the last
+// time step, the gap's for the first revolution after it, and mid-revolution lies half a
+// revolution after the stamp, not half that period. (Taken as half the period, the first pose
+// after a 0.5 s gap at 14.7 m/s went 3.5 m back and the next one 3.5 m on.)
+TEST(Odometry, ResumesAfterAGapDeskewedToMidRevolution) {
+  std::vector<core::Scan> scans;
+  const auto starts = drive_street(5.0, 2, 3, [&](core::Scan& scan) { scans.push_back(scan); });
+  ASSERT_GE(scans.size(), 48u);
+  constexpr std::size_t kLast = 19, kResume = 40;  // scans 20..39 are lost
+  OdometryOptions options;
+  options.deskew_to_mid_scan = true;
+  std::vector<double> truth_t;
+  const std::vector<TimedPose> est = odometry_across_gap(scans, kLast, kResume, truth_t, options);
+  EXPECT_EQ(expect_pairs_within_5cm(starts, est, truth_t), 1u);
 }
 
 // Data lost for 0.9 s while the vehicle ends a turn (a loop's corner, turning 2.3 deg per
