@@ -70,10 +70,10 @@ struct OdometryOptions {
   /// Deskew to the sensor pose at mid-revolution instead of the scan stamp: the matches then
   /// estimate that pose and the reported pose is moved back to the stamp. At mid-scan an error
   /// in the deskew's motion distorts the scan symmetrically and does not move the matched pose
-  /// (deskewed to the stamp, half of a height-rate error goes into the height). Off by default:
-  /// on 28 simulated 30 s drives it halves RTE and RPE (with max_acceleration), but the 120 s
-  /// street drive drifts to an ATE of 0.71 m (0.19 m without), which the mapper then does not
-  /// correct (docs/odometry.md).
+  /// (deskewed to the stamp, half of a height-rate error goes into the height), and a body
+  /// pitching within the revolution is not smoothed over three scans. Off by default: it halves
+  /// RTE on most simulated drives, but loses some starts the stamp deskew keeps, most with the
+  /// sensor turned in yaw on its mount (docs/odometry.md, measured on 2026-12-07).
   bool deskew_to_mid_scan = false;
   /// A sensor mounted more than 5 deg off level (pitched down to see the ground, say): the
   /// level surfaces (ground, floor) of the first scan used give the up direction, and every scan is
