@@ -303,8 +303,8 @@ const std::vector<Field>& fields() {
        "scans", 0, 100000},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
        "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
-       "stays at the stamp). Halves RTE on most simulated drives, but loses some starts the "
-       "stamp deskew keeps, most with the sensor turned in yaw (docs/odometry.md)."},
+       "stays at the stamp). Halves RTE on most simulated drives, but loses some the stamp "
+       "deskew keeps, most with the sensor turned in yaw (docs/odometry.md)."},
       {"odometry", "deskew_acceleration", CNDT_REF(odometry.deskew_acceleration),
        "Deskew with the velocity at the scan stamp from the last three poses (after a clean "
        "match) instead of the mean velocity over the last period, which lags half a period "

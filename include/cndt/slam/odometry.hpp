@@ -72,8 +72,8 @@ struct OdometryOptions {
   /// in the deskew's motion distorts the scan symmetrically and does not move the matched pose
   /// (deskewed to the stamp, half of a height-rate error goes into the height), and a body
   /// pitching within the revolution is not smoothed over three scans. Off by default: it halves
-  /// RTE on most simulated drives, but loses some starts the stamp deskew keeps, most with the
-  /// sensor turned in yaw on its mount (docs/odometry.md, measured on 2026-12-07).
+  /// RTE on most simulated drives, but loses some the stamp deskew keeps, most with the sensor
+  /// turned in yaw on its mount (docs/odometry.md, measured on 2026-12-07).
   bool deskew_to_mid_scan = false;
   /// A sensor mounted more than 5 deg off level (pitched down to see the ground, say): the
   /// level surfaces (ground, floor) of the first scan used give the up direction, and every scan is
