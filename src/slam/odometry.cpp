@@ -402,9 +402,15 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
                 .angle = aa.angle(),
                 .inv_period = 1.0 / period_s_,
                 .mid = mid,
-                .to_mid = mid ? scale_motion(motion, mid_fraction_).inverse()
+                .to_mid = mid ? scale_motion(motion, mid_fraction()).inverse()
                               : Eigen::Isometry3d::Identity()};
   ndt::run_chunks(lookup_cache_.runner(), in.size(), &deskew_chunk, &job);
+}
+
+double ConsensusOdometry::mid_fraction() const {
+  // The deskew's period spans the last time step: after a gap in the data that is the gap, and
+  // half of it would lie far past this revolution's middle.
+  return options_.deskew_to_mid_scan ? 0.5 * revolution_s_ / period_s_ : 0.0;
 }
 
 void ConsensusOdometry::deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base) {
@@ -763,10 +769,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   // A point fired t after the stamp moves t / dt times the pose's change with the undistortion
   // (measured from mid-revolution with deskew_to_mid_scan), 1 + extrapolate_ times that with
   // the velocity at the stamp: its lever in the matches.
-  // Mid-revolution as a fraction of the deskew's period, which spans the last time step: after a
-  // gap in the data that is the gap, and half of it would be far past this revolution's middle.
-  mid_fraction_ = options_.deskew_to_mid_scan ? 0.5 * revolution_s_ / period_s_ : 0.0;
-  const double lever_origin = mid_fraction_;
+  const double lever_origin = mid_fraction();
   const double lever_scale = 1.0 + extrapolate_;
   lever_.clear();
   double range2 = 0.0;
@@ -989,7 +992,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   if (options_.deskew && options_.deskew_to_mid_scan) {
     // Reported at the scan stamp, half a revolution's motion before mid-revolution; the points
     // for the mapper likewise.
-    const Eigen::Isometry3d half = scale_motion(deskewed_with_, mid_fraction_);
+    const Eigen::Isometry3d half = scale_motion(deskewed_with_, mid_fraction());
     res.pose = res.pose * half.inverse();
     stamp_points_.clear();
     for (const Eigen::Vector3d& p : cv_points_) stamp_points_.push_back(half * p);

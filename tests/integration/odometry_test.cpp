@@ -384,8 +384,8 @@ TEST(Odometry, ResumesAfterAGapInTheData) {
 
 // The same gap with the scans deskewed to mid-revolution: the deskew's period spans the last
 // time step, the gap's for the first revolution after it, and mid-revolution lies half a
-// revolution after the stamp, not half that period. (Taken as half the period, the first pose
-// after a 0.5 s gap at 14.7 m/s went 3.5 m back and the next one 3.5 m on.)
+// revolution after the stamp, not half that period. (Taken as half the period, the pairs
+// after this 2 s gap were 10 m off.)
 TEST(Odometry, ResumesAfterAGapDeskewedToMidRevolution) {
   std::vector<core::Scan> scans;
   const auto starts = drive_street(5.0, 2, 3, [&](core::Scan& scan) { scans.push_back(scan); });

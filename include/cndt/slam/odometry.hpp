@@ -342,12 +342,15 @@ class ConsensusOdometry {
  private:
   // Deskews `in` (sensor frame, timed) with `motion` over this scan's period into `out`: every
   // point moved to where the sensor was at the scan stamp, or with deskew_to_mid_scan at
-  // mid-revolution, half a revolution after the stamp (mid_fraction_ of `motion`).
+  // mid-revolution, half a revolution after the stamp (mid_fraction() of `motion`).
   void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
               std::vector<Eigen::Vector3d>& out) const;
   // Deskews the points the matches use (test_) over this scan's period with `motion`, which the
   // pose `base` implies: the base of the scan motion the matches solve for.
   void deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base);
+  // With deskew_to_mid_scan, where mid-revolution lies as a fraction of this scan's deskew
+  // period (half a revolution after the stamp); 0 without.
+  [[nodiscard]] double mid_fraction() const;
   // Deskews the map_cell points (cv_points_: Cv, Cm, the reference and the mapper) with `motion`.
   void deskew_scan(const Eigen::Isometry3d& motion);
   // The deskew motion over one period that `pose` implies: the motion from prev_pose_, with
@@ -493,8 +496,6 @@ class ConsensusOdometry {
   double silence_s_ = 0.0;     // the longest silence between scans since the last given a pose
   bool clock_jumped_ = false;  // since the last scan given a pose
   double revolution_s_ = 0.1;  // span of the last whole revolution
-  // With deskew_to_mid_scan: where mid-revolution lies, as a fraction of this scan's deskew period.
-  double mid_fraction_ = 0.0;
   double prev_period_s_ = 0.1;
   // The change of speed, m/s^2, over the last two steps beyond prior_acceleration_threshold
   // (else 0), and the one the prior's centre takes (the smaller of the last two, if alike).
