@@ -302,14 +302,23 @@ const std::vector<Field>& fields() {
        "patches\").",
        "scans", 0, 100000},
       {"odometry", "deskew_to_mid_scan", CNDT_REF(odometry.deskew_to_mid_scan),
-       "Deskew to the sensor pose at mid-revolution instead of the scan stamp (the reported pose "
-       "stays at the stamp). Halves RTE on most simulated drives, but loses some the stamp "
-       "deskew keeps, most with the sensor turned in yaw (docs/odometry.md)."},
+       "Deskew to the sensor pose at mid-revolution instead of the scan stamp, once "
+       "mid_scan_after_clean clean matches have measured the velocity (the reported pose stays "
+       "at the stamp; deskew_acceleration does not apply). Lowers RTE on most simulated drives "
+       "(a body pitching within a revolution is not smoothed over three scans), but some lose "
+       "more than the rest gain (docs/odometry.md, \"Deskew to mid-revolution\")."},
+      {"odometry", "mid_scan_after_clean", CNDT_REF(odometry.mid_scan_after_clean),
+       "With deskew_to_mid_scan: deskew to the stamp until this many clean matches in a row "
+       "(none across a gap) have measured the velocity, then to mid-revolution (0 = from the "
+       "first scan, where the start-up matches went 0.1-0.4 m off on drives the stamp deskew "
+       "starts cleanly).",
+       "matches", 0, 100000},
       {"odometry", "deskew_acceleration", CNDT_REF(odometry.deskew_acceleration),
        "Deskew with the velocity at the scan stamp from the last three poses (after a clean "
        "match) instead of the mean velocity over the last period, which lags half a period "
        "behind: follows a vehicle pitching on its suspension, most at 300-420 rpm "
-       "(docs/odometry.md, \"Deskew velocity\")."},
+       "(docs/odometry.md, \"Deskew velocity\"). Not with deskew_to_mid_scan, where it lost "
+       "drives with the sensor turned in yaw."},
       {"odometry", "guess_jitter_seed", CNDT_REF(odometry.guess_jitter_seed),
        "For evaluation only (0 = off): every match starts from its initial guess moved by at most "
        "0.5e-9 m / rad per coordinate, drawn from this seed, to show how far results depend on "

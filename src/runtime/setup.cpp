@@ -113,6 +113,7 @@ core::Result<Setup> make_setup(const config::Config& c) {
   o.patch_max_tilt_deg = od.patch_max_tilt_deg;
   o.patches_clean_scans = static_cast<std::size_t>(od.patches_clean_scans);
   o.deskew_to_mid_scan = od.deskew_to_mid_scan;
+  o.mid_scan_after_clean = static_cast<std::size_t>(od.mid_scan_after_clean);
   o.deskew_acceleration = od.deskew_acceleration;
   o.guess_jitter_seed = static_cast<std::uint64_t>(od.guess_jitter_seed);
   o.max_scan_points = s.max_points;

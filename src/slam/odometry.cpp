@@ -118,6 +118,7 @@ ConsensusOdometry::ConsensusOdometry(const OdometryOptions& o)
       map_sampler_(o.map_cell, o.max_scan_points),
       scan_sampler_(o.scan_cell, o.max_scan_points),
       jitter_state_(o.guess_jitter_seed) {
+  mid_active_ = o.deskew_to_mid_scan && o.mid_scan_after_clean == 0;
   // Every buffer resident from the start (core/resident.hpp).
   const TimedPoint timed{Eigen::Vector3d::Zero(), 0.0};
   const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
@@ -390,10 +391,10 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
   }
   // Sensor pose at a point's firing time relative to the scan stamp: the fraction a = t / period
   // of the motion over one scan period, its rotation by Rodrigues' formula about the fixed axis.
-  // With deskew_to_mid_scan, then into the frame at mid-revolution, half the motion on. Points
+  // Once deskewing to mid-revolution, then into the frame there, half the motion on. Points
   // are independent: in chunks, on the scorings' runner when there is one.
   const Eigen::AngleAxisd aa(motion.linear());
-  const bool mid = options_.deskew_to_mid_scan;
+  const bool mid = mid_active_;
   out.resize(in.size());  // within the resident capacity
   DeskewJob job{.in = in,
                 .out = out.data(),
@@ -410,7 +411,7 @@ void ConsensusOdometry::deskew(std::span<const TimedPoint> in, const Eigen::Isom
 double ConsensusOdometry::mid_fraction() const {
   // The deskew's period spans the last time step: after a gap in the data that is the gap, and
   // half of it would lie far past this revolution's middle.
-  return options_.deskew_to_mid_scan ? 0.5 * revolution_s_ / period_s_ : 0.0;
+  return mid_active_ ? 0.5 * revolution_s_ / period_s_ : 0.0;
 }
 
 void ConsensusOdometry::deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base) {
@@ -659,7 +660,7 @@ OdometryResult ConsensusOdometry::process(const core::Scan& scan) {
 void ConsensusOdometry::commit() {
   if (!reference_due_) return;
   reference_due_ = false;
-  update_reference(prev_pose_);  // the scan's pose (at mid-revolution with deskew_to_mid_scan)
+  update_reference(prev_pose_);  // the scan's pose (at mid-revolution once deskewed there)
 }
 
 OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
@@ -670,7 +671,7 @@ OdometryResult ConsensusOdometry::estimate(const core::Scan& scan) {
     res.pose.linear() = r.transpose() * res.pose.linear() * r;
     res.pose.translation() = r.transpose() * res.pose.translation();
     sensor_points_.clear();
-    for (const Eigen::Vector3d& p : options_.deskew_to_mid_scan ? stamp_points_ : cv_points_) {
+    for (const Eigen::Vector3d& p : mid_active_ ? stamp_points_ : cv_points_) {
       sensor_points_.push_back(r.transpose() * p);
     }
   }
@@ -696,6 +697,14 @@ void ConsensusOdometry::decide_level() {
 
 OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   commit();  // the previous scan's, when the caller has not
+  if (mid_due_) {
+    // From here on deskewed to mid-revolution (mid_scan_after_clean): the last pose, committed to
+    // the reference at its stamp, moves on to the middle of its revolution, where the poses
+    // chained from now on lie.
+    mid_due_ = false;
+    mid_active_ = true;
+    prev_pose_ = prev_pose_ * mid_step_;
+  }
   OdometryResult res;
   // The match is degenerate (as kOdomDegenerate without the hysteresis of its report).
   bool degenerate_match = false;
@@ -763,11 +772,14 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   // over the h before. Under constant acceleration (a quadratic through the last three poses,
   // the second-order backward difference) the velocity at the stamp is the newer mean plus
   // dt / (dt + h) times its change from the older: half of it for equal steps, next to nothing
-  // when the older motion spans a gap in the data.
+  // when the older motion spans a gap in the data. Not with deskew_to_mid_scan: there it lost
+  // drives with the sensor turned in yaw on its mount (docs/odometry.md).
   extrapolate_ =
-      options_.deskew_acceleration && have_prev2_ && trusted ? dt / (dt + prev_period_s_) : 0.0;
+      options_.deskew_acceleration && !options_.deskew_to_mid_scan && have_prev2_ && trusted
+          ? dt / (dt + prev_period_s_)
+          : 0.0;
   // A point fired t after the stamp moves t / dt times the pose's change with the undistortion
-  // (measured from mid-revolution with deskew_to_mid_scan), 1 + extrapolate_ times that with
+  // (measured from mid-revolution once deskewed there), 1 + extrapolate_ times that with
   // the velocity at the stamp: its lever in the matches.
   const double lever_origin = mid_fraction();
   const double lever_scale = 1.0 + extrapolate_;
@@ -794,7 +806,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
     newest_src_ = map_src_;
     prev_pose_ = res.pose;
     // Not deskewed: the stamp and mid-revolution frames coincide.
-    if (options_.deskew_to_mid_scan) stamp_points_ = cv_points_;
+    if (mid_active_) stamp_points_ = cv_points_;
     prev_stamp_ = scan.stamp;
     have_prev_ = true;
     return res;
@@ -856,7 +868,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
         first_velocity = estimated;
         deskew(newest_src_, estimated, scratch_);
         // The first scan's pose at its stamp is the identity; at mid-revolution, half a period on.
-        if (options_.deskew_to_mid_scan) {
+        if (mid_active_) {
           last_keyframe_pose_ = scale_motion(estimated, 0.5);
           prev_pose_ = last_keyframe_pose_;
         }
@@ -966,6 +978,15 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   prediction_trusted_ = !degenerate_match &&
                         (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomRematched)) == 0;
   clean_run_ = degenerate_match ? 0 : clean_run_ + 1;
+  // mid_scan_after_clean: the velocity measured by that many clean matches in a row, none across
+  // a gap or a clock jump. The step from this scan's stamp to its middle, with the motion it was
+  // deskewed with.
+  trusted_run_ = prediction_trusted_ && !after_gap && !jumped ? trusted_run_ + 1 : 0;
+  if (options_.deskew_to_mid_scan && !mid_active_ &&
+      trusted_run_ >= options_.mid_scan_after_clean) {
+    mid_due_ = true;
+    mid_step_ = scale_motion(deskewed_with_, 0.5 * revolution_s_ / period_s_);
+  }
   // The slide bound needs a prediction measured by clean matches: armed by kSlideBoundCleanRun
   // of them in a row (counted across a gap), disarmed by a gap or a clock jump.
   if (after_gap || jumped) slide_bound_armed_ = false;
@@ -989,7 +1010,7 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   reference_due_ = true;  // at prev_pose_, set next
   prev_pose_ = res.pose;
   prev_stamp_ = scan.stamp;
-  if (options_.deskew && options_.deskew_to_mid_scan) {
+  if (options_.deskew && mid_active_) {
     // Reported at the scan stamp, half a revolution's motion before mid-revolution; the points
     // for the mapper likewise.
     const Eigen::Isometry3d half = scale_motion(deskewed_with_, mid_fraction());

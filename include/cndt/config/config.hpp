@@ -68,6 +68,7 @@ struct Config {
     double patch_max_tilt_deg = 25.0;
     std::int64_t patches_clean_scans = 3;
     bool deskew_to_mid_scan = false;
+    std::int64_t mid_scan_after_clean = 10;
     bool deskew_acceleration = true;
     std::int64_t guess_jitter_seed = 0;
   } odometry;

@@ -67,14 +67,23 @@ struct OdometryOptions {
   double min_range = 1.0, max_range = 100.0;  ///< m; nearer points are the vehicle itself
   /// Undistort every scan with the estimated motion (constant-velocity prediction, refined).
   bool deskew = true;
-  /// Deskew to the sensor pose at mid-revolution instead of the scan stamp: the matches then
-  /// estimate that pose and the reported pose is moved back to the stamp. At mid-scan an error
-  /// in the deskew's motion distorts the scan symmetrically and does not move the matched pose
-  /// (deskewed to the stamp, half of a height-rate error goes into the height), and a body
-  /// pitching within the revolution is not smoothed over three scans. Off by default: it halves
-  /// RTE on most simulated drives, but loses some the stamp deskew keeps, most with the sensor
-  /// turned in yaw on its mount (docs/odometry.md, measured on 2026-12-07).
+  /// Deskew to the sensor pose at mid-revolution instead of the scan stamp (from the
+  /// mid_scan_after_clean-th clean match on): the matches then estimate that pose and the
+  /// reported pose is moved back to the stamp. At mid-scan an error in the deskew's motion
+  /// distorts the scan symmetrically and does not move the matched pose (deskewed to the stamp,
+  /// half of a height-rate error goes into the height), and a body pitching within the
+  /// revolution is not smoothed over three scans. deskew_acceleration does not apply with it.
+  /// Off by default: it lowers RTE on most simulated drives, but some lose more than the rest
+  /// gain (a street with the sensor pitched 10 deg down, a fast pull-away with packet loss, a gap
+  /// in a turn; docs/odometry.md, "Deskew to mid-revolution", measured on 2026-12-07).
   bool deskew_to_mid_scan = false;
+  /// With deskew_to_mid_scan: scans are deskewed to the stamp until this many clean matches in a
+  /// row (none across a gap) have measured the velocity, and to mid-revolution from then on
+  /// (0 = from the first scan). Deskewed to mid-revolution from the start, the first matches
+  /// against a reference of one or two scans went 0.1-0.4 m off on some drives that the stamp
+  /// deskew starts cleanly (a street with the sensor pitched 10 deg up, a campus with 8
+  /// movers).
+  std::size_t mid_scan_after_clean = 10;
   /// A sensor mounted more than 5 deg off level (pitched down to see the ground, say): the
   /// level surfaces (ground, floor) of the first scan used give the up direction, and every scan is
   /// turned by the rotation that brings it to z before anything else, so that the matches, the
@@ -87,7 +96,8 @@ struct OdometryOptions {
   /// motion before it), instead of the mean velocity over the last period, which lags half a
   /// period behind it; only after a clean match. A vehicle pitching on its suspension (about
   /// 1 Hz) changes its rate of pitch within a period, most at 300-420 rpm (docs/odometry.md,
-  /// "Deskew velocity").
+  /// "Deskew velocity"). Not with deskew_to_mid_scan: with it, drives with the sensor turned in
+  /// yaw were lost (a 420 rpm campus with the sensor facing back: 0.95 m against 0.004 m).
   bool deskew_acceleration = true;
   /// A partial revolution (the stream's first, where the receiver started mid-turn, or the first
   /// after a gap in the data) is not matched: flag kOdomSkipped, no pose. As the first reference
@@ -322,7 +332,7 @@ class ConsensusOdometry {
   /// scan.
   [[nodiscard]] std::span<const Eigen::Vector3d> scan_points() const {
     if (tilted_) return sensor_points_;
-    return options_.deskew_to_mid_scan ? stamp_points_ : cv_points_;
+    return mid_active_ ? stamp_points_ : cv_points_;
   }
   /// The rotation from the sensor's frame into the odometry's own (level_frame; the identity
   /// for a sensor within 5 deg of level): reference_grid() and reference_points() lie in the
@@ -341,15 +351,15 @@ class ConsensusOdometry {
 
  private:
   // Deskews `in` (sensor frame, timed) with `motion` over this scan's period into `out`: every
-  // point moved to where the sensor was at the scan stamp, or with deskew_to_mid_scan at
-  // mid-revolution, half a revolution after the stamp (mid_fraction() of `motion`).
+  // point moved to where the sensor was at the scan stamp, or once deskewing to mid-revolution
+  // there, half a revolution after the stamp (mid_fraction() of `motion`).
   void deskew(std::span<const TimedPoint> in, const Eigen::Isometry3d& motion,
               std::vector<Eigen::Vector3d>& out) const;
   // Deskews the points the matches use (test_) over this scan's period with `motion`, which the
   // pose `base` implies: the base of the scan motion the matches solve for.
   void deskew_for(const Eigen::Isometry3d& motion, const core::Pose6& base);
-  // With deskew_to_mid_scan, where mid-revolution lies as a fraction of this scan's deskew
-  // period (half a revolution after the stamp); 0 without.
+  // Once deskewing to mid-revolution, where it lies as a fraction of this scan's deskew period
+  // (half a revolution after the stamp); 0 before and without deskew_to_mid_scan.
   [[nodiscard]] double mid_fraction() const;
   // Deskews the map_cell points (cv_points_: Cv, Cm, the reference and the mapper) with `motion`.
   void deskew_scan(const Eigen::Isometry3d& motion);
@@ -473,7 +483,8 @@ class ConsensusOdometry {
   std::vector<double> cv_;
   ndt::VoxelResiduals residuals_;
   bool have_prev_ = false, have_prev2_ = false;
-  // With deskew_to_mid_scan, the poses and motions chained here are those at mid-revolution.
+  // Once deskewing to mid-revolution (mid_active_), the poses and motions chained here are those
+  // there.
   Eigen::Isometry3d prev_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d prev_motion_ = Eigen::Isometry3d::Identity();  // between the last two scans
   // deskew_acceleration for this scan: the deskew motion is (1 + extrapolate_) times the motion
@@ -486,6 +497,12 @@ class ConsensusOdometry {
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;
+  // deskew_to_mid_scan: deskewing to mid-revolution (from the first scan, or once
+  // mid_scan_after_clean clean matches in a row have measured the velocity: then mid_due_, and
+  // the last pose moves by mid_step_ before the next scan).
+  bool mid_active_ = false, mid_due_ = false;
+  std::size_t trusted_run_ = 0;
+  Eigen::Isometry3d mid_step_ = Eigen::Isometry3d::Identity();
   ndt::PositionPrior prior_;  // the matches' pull towards this scan's prediction
   // The translation block of the last match's Hessian (match()): bound_slide reads it.
   Eigen::Matrix3d match_translation_hessian_ = Eigen::Matrix3d::Zero();
