@@ -499,10 +499,9 @@ class ConsensusOdometry {
   bool prediction_trusted_ = false;
   // deskew_to_mid_scan: deskewing to mid-revolution (from the first scan, or once
   // mid_scan_after_clean clean matches in a row have measured the velocity: then mid_due_, and
-  // the last pose moves by mid_step_ before the next scan).
+  // the last pose moves on to its mid-revolution before the next scan).
   bool mid_active_ = false, mid_due_ = false;
   std::size_t trusted_run_ = 0;
-  Eigen::Isometry3d mid_step_ = Eigen::Isometry3d::Identity();
   ndt::PositionPrior prior_;  // the matches' pull towards this scan's prediction
   // The translation block of the last match's Hessian (match()): bound_slide reads it.
   Eigen::Matrix3d match_translation_hessian_ = Eigen::Matrix3d::Zero();
