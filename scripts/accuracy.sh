@@ -9,11 +9,12 @@ seconds=${2:-60}
 cndt=$build/src/apps/cndt
 out=$root/out/accuracy
 mkdir -p "$out"
+# shellcheck source=scripts/replay_eval.sh
+source "$root/scripts/replay_eval.sh"
 row() {  # scene movers mode
   local dir=$out/$1-m$2
   [[ -f $dir/capture.pcap ]] || "$cndt" sim --scene "$1" --duration "$seconds" --movers "$2" --seed 1 --out "$dir" >/dev/null
-  "$cndt" replay "$dir/capture.pcap" --out "$dir/$3" --mode "$3" >/dev/null 2>&1
-  "$cndt" eval --gt "$dir/groundtruth.tum" --est "$dir/$3/trajectory.tum" > "$dir/$3/eval.json"
+  replay_eval "$dir" "$dir/$3" --mode "$3"
   python3 - "$1" "$2" "$3" "$dir/$3/eval.json" "$dir/$3/summary.json" <<'PY'
 import json, sys
 e = json.load(open(sys.argv[4])); s = json.load(open(sys.argv[5]))

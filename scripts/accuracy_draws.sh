@@ -20,6 +20,8 @@ captures=$root/out/accuracy-seeds
 mkdir -p "$captures" "$results"
 # shellcheck source=scripts/accuracy_drives.sh
 source "$root/scripts/accuracy_drives.sh"
+# shellcheck source=scripts/replay_eval.sh
+source "$root/scripts/replay_eval.sh"
 jobs=()
 for d in "${drives[@]}"; do
   for j in "${seeds[@]}"; do jobs+=("$d $j"); done
@@ -27,8 +29,7 @@ done
 run() {  # scene-seed-movers jitter-seed
   local dir=$captures/$1 out=$results/$1-j$2
   drive_capture "$1" 30 "$captures"
-  "$cndt" replay "$dir/capture.pcap" --out "$out" --mode "$mode" --jitter-seed "$2" >/dev/null 2>&1
-  "$cndt" eval --gt "$dir/groundtruth.tum" --est "$out/trajectory.tum" >"$out/eval.json"
+  replay_eval "$dir" "$out" --mode "$mode" --jitter-seed "$2"
 }
 export -f run drive_capture
 export cndt captures results mode

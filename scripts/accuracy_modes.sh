@@ -26,27 +26,18 @@ cndt=$build/src/apps/cndt
 mkdir -p "$out"
 list=$out/drives.txt
 bash "$root/scripts/accuracy_random.sh" "$build" "$out" --draw "$draw" --list >"$list"
-capture() {  # NAME SIM_ARGS...
-  local dir=$out/$1
-  shift
-  [[ -f $dir/capture.pcap ]] || "$cndt" sim "$@" --out "$dir" >/dev/null 2>&1
-}
-replay() {  # DRIVE_DIR MODE SEED
-  local dir=$1 run=$1/jitter-$2-$3
-  "$cndt" replay "$dir/capture.pcap" --out "$run" --mode "$2" --jitter-seed "$3" >/dev/null 2>&1
-  "$cndt" eval --gt "$dir/groundtruth.tum" --est "$run/trajectory.tum" >"$run/eval.json"
-}
-export -f capture replay
+# shellcheck source=scripts/replay_eval.sh
+source "$root/scripts/replay_eval.sh"
 export cndt out
 # shellcheck disable=SC2016 # expanded by the inner shell
-xargs -P 2 -L 1 bash -c 'capture "$0" "$@"' <"$list"
+xargs -P 2 -L 1 bash -c 'sim_once "$out/$0" "$@"' <"$list"
 # shellcheck disable=SC2016 # expanded by the inner shell
 cut -d' ' -f1 "$list" |
   while read -r name; do
     for mode in consensus naive; do
       for seed in $(seq 1 "$k"); do echo "$out/$name $mode $seed"; done
     done
-  done | xargs -P 2 -L 1 bash -c 'replay "$0" "$1" "$2"'
+  done | xargs -P 2 -L 1 bash -c 'replay_eval "$0" "$0/jitter-$1-$2" --mode "$1" --jitter-seed "$2"'
 python3 - "$out" "$k" "$list" <<'PY'
 import json, math, re, statistics, sys
 out, k, listing = sys.argv[1], int(sys.argv[2]), sys.argv[3]

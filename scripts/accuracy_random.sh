@@ -88,12 +88,13 @@ if $list; then
   exit 0
 fi
 mkdir -p "$out"
+# shellcheck source=scripts/replay_eval.sh
+source "$root/scripts/replay_eval.sh"
 run() {  # NAME SIM_ARGS...
   local dir=$out/$1
   shift
-  [[ -f $dir/capture.pcap ]] || "$cndt" sim "$@" --out "$dir" >/dev/null 2>&1
-  "$cndt" replay "$dir/capture.pcap" --out "$dir/replay" "${replay_args[@]}" >/dev/null 2>&1
-  "$cndt" eval --gt "$dir/groundtruth.tum" --est "$dir/replay/trajectory.tum" >"$dir/replay/eval.json"
+  sim_once "$dir" "$@"
+  replay_eval "$dir" "$dir/replay" "${replay_args[@]}"
 }
 export -f run
 export cndt out
