@@ -697,12 +697,13 @@ void ConsensusOdometry::decide_level() {
 
 OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   commit();  // the previous scan's, when the caller has not
-  if (mid_due_) {
-    // From here on deskewed to mid-revolution (mid_scan_after_clean): the last pose, committed to
-    // the reference at its stamp, moves on to the middle of its revolution (with the motion it
-    // was deskewed with and its revolution, not yet this scan's), where the poses chained from
-    // now on lie.
-    mid_due_ = false;
+  // mid_scan_after_clean: the velocity measured by that many clean matches in a row, none across
+  // a gap or a clock jump (trusted_run_, counted by the last scan).
+  if (options_.deskew_to_mid_scan && !mid_active_ &&
+      trusted_run_ >= options_.mid_scan_after_clean) {
+    // From here on deskewed to mid-revolution: the last pose, committed to the reference at its
+    // stamp, moves on to the middle of its revolution (with the motion it was deskewed with and
+    // its revolution, not yet this scan's), where the poses chained from now on lie.
     mid_active_ = true;
     prev_pose_ = prev_pose_ * scale_motion(deskewed_with_, mid_fraction());
   }
@@ -979,11 +980,8 @@ OdometryResult ConsensusOdometry::estimate_levelled(const core::Scan& scan) {
   prediction_trusted_ = !degenerate_match &&
                         (res.flags & (kOdomTooFewPoints | kOdomNotConverged | kOdomRematched)) == 0;
   clean_run_ = degenerate_match ? 0 : clean_run_ + 1;
-  // mid_scan_after_clean: the velocity measured by that many clean matches in a row, none across
-  // a gap or a clock jump.
+  // Clean matches in a row, none across a gap or a clock jump: mid_scan_after_clean reads it.
   trusted_run_ = prediction_trusted_ && !after_gap && !jumped ? trusted_run_ + 1 : 0;
-  mid_due_ =
-      options_.deskew_to_mid_scan && !mid_active_ && trusted_run_ >= options_.mid_scan_after_clean;
   // The slide bound needs a prediction measured by clean matches: armed by kSlideBoundCleanRun
   // of them in a row (counted across a gap), disarmed by a gap or a clock jump.
   if (after_gap || jumped) slide_bound_armed_ = false;

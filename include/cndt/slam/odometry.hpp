@@ -497,10 +497,10 @@ class ConsensusOdometry {
   // The last scan was matched cleanly after an earlier one (so a velocity is known): see
   // max_acceleration.
   bool prediction_trusted_ = false;
-  // deskew_to_mid_scan: deskewing to mid-revolution (from the first scan, or once
-  // mid_scan_after_clean clean matches in a row have measured the velocity: then mid_due_, and
-  // the last pose moves on to its mid-revolution before the next scan).
-  bool mid_active_ = false, mid_due_ = false;
+  // deskew_to_mid_scan: deskewing to mid-revolution (from the first scan, or from the scan after
+  // trusted_run_, the clean matches in a row, reached mid_scan_after_clean: the last pose then
+  // moves on to its mid-revolution before that scan is matched).
+  bool mid_active_ = false;
   std::size_t trusted_run_ = 0;
   ndt::PositionPrior prior_;  // the matches' pull towards this scan's prediction
   // The translation block of the last match's Hessian (match()): bound_slide reads it.
