@@ -13,7 +13,7 @@ mkdir -p "$out"
 source "$root/scripts/replay_eval.sh"
 row() {  # scene movers mode
   local dir=$out/$1-m$2
-  [[ -f $dir/capture.pcap ]] || "$cndt" sim --scene "$1" --duration "$seconds" --movers "$2" --seed 1 --out "$dir" >/dev/null
+  sim_once "$dir" --scene "$1" --duration "$seconds" --movers "$2" --seed 1
   replay_eval "$dir" "$dir/$3" --mode "$3"
   python3 - "$1" "$2" "$3" "$dir/$3/eval.json" "$dir/$3/summary.json" <<'PY'
 import json, sys
